@@ -1,0 +1,43 @@
+#include "algo/image/scharr.hpp"
+
+#include "algo/image/border.hpp"
+
+namespace epitrack {
+
+void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageView<int16_t> dy) {
+  EPITRACK_ASSERT(sameSize(src, dx) && sameSize(src, dy));
+  const int w = src.width;
+  const int h = src.height;
+  for (int y = 0; y < h; ++y) {
+    const uint8_t* up = src.row(reflect101(y - 1, h));
+    const uint8_t* mid = src.row(y);
+    const uint8_t* down = src.row(reflect101(y + 1, h));
+    int16_t* ox = dx.row(y);
+    int16_t* oy = dy.row(y);
+    // Separable: smoothing [3 10 3] across the derivative direction, difference [-1 0 1] along it.
+    const auto at = [&](int x) {
+      const int xl = reflect101(x - 1, w);
+      const int xr = reflect101(x + 1, w);
+      const int gx = 3 * (up[xr] - up[xl]) + 10 * (mid[xr] - mid[xl]) + 3 * (down[xr] - down[xl]);
+      const int gy = 3 * (down[xl] - up[xl]) + 10 * (down[x] - up[x]) + 3 * (down[xr] - up[xr]);
+      ox[x] = static_cast<int16_t>(gx);
+      oy[x] = static_cast<int16_t>(gy);
+    };
+    if (w < 3) {
+      for (int x = 0; x < w; ++x) at(x);
+      continue;
+    }
+    at(0);
+    for (int x = 1; x < w - 1; ++x) {
+      const int gx = 3 * (up[x + 1] - up[x - 1]) + 10 * (mid[x + 1] - mid[x - 1]) +
+                     3 * (down[x + 1] - down[x - 1]);
+      const int gy =
+          3 * (down[x - 1] - up[x - 1]) + 10 * (down[x] - up[x]) + 3 * (down[x + 1] - up[x + 1]);
+      ox[x] = static_cast<int16_t>(gx);
+      oy[x] = static_cast<int16_t>(gy);
+    }
+    at(w - 1);
+  }
+}
+
+}  // namespace epitrack

@@ -1,0 +1,78 @@
+#pragma once
+
+// Helpers shared by the Catch2 tests: temporary directories, the real-data location and a
+// visible skip (ctest marks a test "Skipped" when its output contains EPITRACK-SKIP).
+
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+#include <string>
+
+#include <unistd.h>
+
+#include "algo/image/image.hpp"
+
+namespace epitrack::test {
+
+/// A fresh directory under $TMPDIR (or /tmp), removed when the object dies unless
+/// EPITRACK_KEEP_TEST_FILES is set.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& tag = "test") {
+    const char* base = std::getenv("TMPDIR");
+    std::string tmpl =
+        std::string(base != nullptr ? base : "/tmp") + "/epitrack-" + tag + "-XXXXXX";
+    path_ = ::mkdtemp(tmpl.data()) != nullptr ? tmpl : std::string();
+  }
+  ~TempDir() {
+    if (!path_.empty() && std::getenv("EPITRACK_KEEP_TEST_FILES") == nullptr) {
+      const std::string cmd = "rm -rf '" + path_ + "'";
+      [[maybe_unused]] const int rc = std::system(cmd.c_str());
+    }
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] const std::string& path() const { return path_; }
+  [[nodiscard]] std::string file(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+/// ../shared/data (configured at build time, overridable with EPITRACK_SHARED_DATA).
+inline std::string sharedDataDir() {
+  if (const char* env = std::getenv("EPITRACK_SHARED_DATA")) return env;
+  return EPITRACK_SHARED_DATA;
+}
+
+/// True when the sequence folder exists; otherwise prints the visible skip marker.
+inline bool haveSharedSequence(const std::string& name) {
+  const std::string dir = sharedDataDir() + "/" + name + "/frames";
+  if (::access(dir.c_str(), R_OK) == 0) return true;
+  std::printf("EPITRACK-SKIP: %s not found (needs ../shared/data beside the project)\n",
+              dir.c_str());
+  return false;
+}
+
+/// Path of a built command, e.g. binaryPath("tools/synth/epitrack-synth").
+inline std::string binaryPath(const std::string& relative) {
+  return std::string(EPITRACK_BINARY_DIR) + "/" + relative;
+}
+
+/// Runs a shell command, returns its exit status (or -1).
+inline int run(const std::string& command) {
+  const int rc = std::system(command.c_str());
+  if (rc == -1 || !WIFEXITED(rc)) return -1;
+  return WEXITSTATUS(rc);
+}
+
+/// Fills an image with seeded uniform random bytes.
+inline void fillRandom(ImageView<uint8_t> img, uint32_t seed) {
+  std::mt19937 rng(seed);
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) img(x, y) = static_cast<uint8_t>(rng() >> 24);
+  }
+}
+
+}  // namespace epitrack::test

@@ -1,0 +1,32 @@
+// epitrack-bench: benchmarks printing one JSON object per line (ARCHITECTURE.md "Commands").
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "tools/bench/bench_registry.hpp"
+
+int main(int argc, char** argv) {
+  auto& reg = epitrack::bench::registry();
+  const auto usage = [&](FILE* out) {
+    std::fprintf(out,
+                 "usage: epitrack-bench SUBCOMMAND [INPUT] [--repeat N] [--threads 1] [options]\n\n"
+                 "Times epitrack's stages (and, when built with -DEPITRACK_BENCH_OPENCV=ON, "
+                 "OpenCV's equivalents on\n"
+                 "the same data in the same run). Prints one JSON object per line: medians, means "
+                 "and p95 of the\n"
+                 "repeated runs, and an \"impl\": \"ratio\" line with opencv_ms / "
+                 "epitrack_ms.\n\nsubcommands:\n");
+    for (const auto& [name, e] : reg) std::fprintf(out, "  %-10s %s\n", name.c_str(), e.summary);
+    std::fprintf(out, "\n'epitrack-bench SUBCOMMAND --help' lists its options.\n");
+  };
+  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
+    usage(argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const auto it = reg.find(argv[1]);
+  if (it == reg.end()) {
+    std::fprintf(stderr, "epitrack-bench: unknown subcommand '%s' (see --help)\n", argv[1]);
+    return 2;
+  }
+  return it->second.run(argc - 1, argv + 1);
+}

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Installs the Debian packages a task needs, only those missing (apt-get; sudo when not root).
+#   tools/deps.sh base        compiler, CMake, Eigen, libjpeg-turbo, libpng, Catch2
+#   tools/deps.sh bench       + OpenCV (the optional benchmark comparison)
+#   tools/deps.sh cross-aarch64 | cross-armhf   cross compiler, target libraries (multiarch), qemu-user
+#   tools/deps.sh fuzz        clang and its sanitizer runtimes (libFuzzer)
+#   tools/deps.sh video       ffmpeg (ffprobe checks of written videos)
+#   tools/deps.sh browser     chromium (report rendering check)
+set -euo pipefail
+
+want=()
+add_arch=""
+for group in "${@:-base}"; do
+  case "$group" in
+    base) want+=(g++ make cmake pkg-config libeigen3-dev libturbojpeg0-dev libpng-dev catch2) ;;
+    bench) want+=(libopencv-dev) ;;
+    cross-aarch64) add_arch=arm64; want+=(g++-aarch64-linux-gnu qemu-user libturbojpeg0-dev:arm64 libpng-dev:arm64) ;;
+    cross-armhf) add_arch=armhf; want+=(g++-arm-linux-gnueabihf qemu-user libturbojpeg0-dev:armhf libpng-dev:armhf) ;;
+    fuzz) want+=(clang libclang-rt-dev) ;;
+    video) want+=(ffmpeg) ;;
+    browser) want+=(chromium) ;;
+    *) echo "deps.sh: unknown group '$group'" >&2; exit 2 ;;
+  esac
+done
+
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then sudo_cmd=(sudo); else
+    echo "deps.sh: not root and no sudo; install manually: ${want[*]}" >&2; exit 1
+  fi
+fi
+
+if [ -n "$add_arch" ] && ! dpkg --print-foreign-architectures | grep -qx "$add_arch"; then
+  "${sudo_cmd[@]}" dpkg --add-architecture "$add_arch"
+  need_update=1
+fi
+
+missing=()
+for p in "${want[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then missing+=("$p"); fi
+done
+if [ ${#missing[@]} -eq 0 ] && [ -z "${need_update:-}" ]; then exit 0; fi
+if [ ${#missing[@]} -eq 0 ]; then exit 0; fi
+echo "deps.sh: installing ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq >&2
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2

@@ -1,0 +1,42 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace epitrack::synth {
+
+/// The named camera motions of `epitrack-synth --scene`.
+enum class SceneKind {
+  kOrbit,     ///< arc around a look-at target (0.25 deg/frame, radius 6 m); the target may wander
+  kDolly,     ///< forward motion towards a wall (<= 1.5 cm/frame), looking at a fixed far point
+  kPan,       ///< pure rotation about the camera centre (yaw +-30 deg, slight tilt)
+  kHandheld,  ///< slow sideways walk (5 mm/frame) looking at the boxes, plus seeded shake
+  kPlanar,    ///< one textured plane seen from a moving, turning camera
+};
+
+bool parseSceneKind(const std::string& name, SceneKind& kind);
+const char* sceneKindName(SceneKind kind);
+
+/// Camera-to-world pose T_wc: x_w = R_wc * x_c + t_wc (t_wc is the camera centre).
+struct Pose {
+  Eigen::Matrix3d R_wc = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t_wc = Eigen::Vector3d::Zero();
+};
+
+/// Camera at `eye` looking at `target` with world up +z (camera y points down in the image).
+Pose lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
+
+struct TrajectoryParams {
+  SceneKind kind = SceneKind::kOrbit;
+  int frames = 100;
+  double target_wander = 0.0;  ///< orbit only: amplitude (m) of the look-at target's motion
+  uint64_t seed = 1;
+};
+
+/// The pose at frame time `t` (frame units; fractional times are used for motion blur).
+Pose trajectoryPose(const TrajectoryParams& params, double t);
+
+}  // namespace epitrack::synth

@@ -1,0 +1,171 @@
+#include "tools/eval/trajectory_metrics.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdio>
+
+#include "hal/io/file_util.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace eval = epitrack::eval;
+using epitrack::hal::TrajectoryEntry;
+
+namespace {
+
+// A hand-made ground truth: a camera moving along x by 1 m per frame, turning about y by 2
+// deg/frame.
+std::vector<TrajectoryEntry> lineTrajectory(int n) {
+  std::vector<TrajectoryEntry> v;
+  for (int i = 0; i < n; ++i) {
+    TrajectoryEntry e;
+    e.t = i;
+    e.position = Eigen::Vector3d(i, 0.0, 0.0);
+    e.rotation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.0349065850398866 * i, Eigen::Vector3d::UnitY()));
+    v.push_back(e);
+  }
+  return v;
+}
+
+std::vector<TrajectoryEntry> transformed(const std::vector<TrajectoryEntry>& in, double s,
+                                         const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+  std::vector<TrajectoryEntry> out = in;
+  for (auto& e : out) {
+    e.position = s * (R * e.position) + t;
+    e.rotation = Eigen::Quaterniond(R * e.rotation.toRotationMatrix());
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("Umeyama recovers a known similarity exactly", "[eval]") {
+  std::vector<Eigen::Vector3d> a = {{0, 0, 0}, {1, 0, 0}, {0, 2, 0}, {0, 0, 3}, {1, 1, 1}};
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  std::vector<Eigen::Vector3d> b;
+  for (const auto& p : a) b.push_back(2.5 * (R * p) + Eigen::Vector3d(1, -2, 3));
+  eval::Similarity S;
+  REQUIRE(eval::umeyamaAlignment(a, b, S));
+  REQUIRE(S.s == Approx(2.5).epsilon(1e-12));
+  REQUIRE((S.R - R).norm() < 1e-12);
+  REQUIRE((S.t - Eigen::Vector3d(1, -2, 3)).norm() < 1e-12);
+  // Collinear points leave the rotation about the line free: refused.
+  std::vector<Eigen::Vector3d> line = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  REQUIRE_FALSE(eval::umeyamaAlignment(line, line, S));
+}
+
+TEST_CASE("A similarity-transformed copy of the ground truth scores zero", "[eval]") {
+  const auto gt = lineTrajectory(20);
+  // Not collinear: bend the path so the alignment is unique.
+  auto bent = gt;
+  for (auto& e : bent) e.position.z() = 0.05 * e.t * e.t;
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(-1.1, Eigen::Vector3d(0.3, 1, -0.2).normalized()).toRotationMatrix();
+  const auto est = transformed(bent, 0.37, R, Eigen::Vector3d(5, 6, 7));
+  eval::TrajectoryMetrics m;
+  std::string err;
+  REQUIRE(eval::evaluateTrajectory(bent, est, 1e-6, m, err));
+  REQUIRE(m.matched_frames == 20);
+  REQUIRE(m.aligned);
+  REQUIRE(m.ate_rmse < 1e-9);
+  REQUIRE(m.rot_err_deg_mean < 1e-6);
+  REQUIRE(m.rpe_trans_rel < 1e-9);
+  REQUIRE(m.scale == Approx(1.0 / 0.37));
+}
+
+TEST_CASE("A hand-checked zig-zag error gives the ATE it should", "[eval]") {
+  // Ground truth (0,0,0), (1,0,1), (2,0,1), (3,0,0) in the plane y = 0. The estimate is off along y
+  // by b * (-1/3, 1, -1, 1/3): zero mean and uncorrelated with x and z, so neither a translation
+  // nor a rotation can absorb it and the best similarity is the identity (up to O(b^2) in scale).
+  std::vector<TrajectoryEntry> gt(4);
+  std::vector<TrajectoryEntry> est(4);
+  const double z[4] = {0.0, 1.0, 1.0, 0.0};
+  const double pattern[4] = {-1.0 / 3.0, 1.0, -1.0, 1.0 / 3.0};
+  const double b = 0.03;
+  for (int i = 0; i < 4; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    gt[k].t = i;
+    gt[k].position = Eigen::Vector3d(i, 0.0, z[i]);
+    est[k] = gt[k];
+    est[k].position.y() += pattern[i] * b;
+  }
+  eval::TrajectoryMetrics m;
+  std::string err;
+  REQUIRE(eval::evaluateTrajectory(gt, est, 1e-6, m, err));
+  const double expected_rmse = b * std::sqrt(5.0 / 9.0);  // sqrt(mean of pattern^2) = sqrt(5/9)
+  REQUIRE(m.ate_rmse == Approx(expected_rmse).epsilon(1e-3));
+  REQUIRE(m.ate_max == Approx(b).epsilon(1e-3));
+  const double length =
+      std::sqrt(2.0) + 1.0 + std::sqrt(2.0);  // |(1,0,1)| + |(1,0,0)| + |(1,0,-1)|
+  REQUIRE(m.gt_path_length == Approx(length));
+  REQUIRE(m.ate_rmse_rel == Approx(expected_rmse / length).epsilon(1e-3));
+  // Relative steps are off by b * (4/3, 2, 4/3) along y.
+  REQUIRE(m.rpe_trans_rel == Approx(b * (14.0 / 3.0) / length).epsilon(1e-3));
+}
+
+TEST_CASE("Association is by frame index; missing frames are skipped", "[eval]") {
+  auto gt = lineTrajectory(10);
+  for (auto& e : gt) e.position.y() = 0.1 * e.t * e.t;
+  std::vector<TrajectoryEntry> est;
+  for (const auto& e : gt) {
+    if (static_cast<int>(e.t) % 3 != 1) est.push_back(e);  // frames 1, 4, 7 unsolved
+  }
+  est.push_back(gt[0]);
+  est.back().t = 42;  // no ground truth: ignored
+  eval::TrajectoryMetrics m;
+  std::string err;
+  REQUIRE(eval::evaluateTrajectory(gt, est, 1e-6, m, err));
+  REQUIRE(m.matched_frames == 7);
+  REQUIRE(m.ate_rmse < 1e-9);
+  std::vector<TrajectoryEntry> one(gt.begin(), gt.begin() + 1);
+  REQUIRE_FALSE(eval::evaluateTrajectory(gt, one, 1e-6, m, err));
+}
+
+TEST_CASE("A rotation error shows in rot_err_deg_mean", "[eval]") {
+  auto gt = lineTrajectory(12);
+  for (auto& e : gt) e.position.z() = std::sin(e.t);
+  auto est = gt;
+  // Every odd frame's orientation off by 1 degree about its optical axis.
+  for (auto& e : est) {
+    if (static_cast<int>(e.t) % 2 == 1) {
+      e.rotation = Eigen::Quaterniond(
+          e.rotation.toRotationMatrix() *
+          Eigen::AngleAxisd(3.14159265358979323846 / 180.0, Eigen::Vector3d::UnitZ()));
+    }
+  }
+  eval::TrajectoryMetrics m;
+  std::string err;
+  REQUIRE(eval::evaluateTrajectory(gt, est, 1e-6, m, err));
+  REQUIRE(m.ate_rmse < 1e-9);
+  REQUIRE(m.rot_err_deg_mean == Approx(0.5).epsilon(1e-6));
+  REQUIRE(m.rot_err_deg_max == Approx(1.0).epsilon(1e-6));
+}
+
+TEST_CASE("epitrack-eval prints the contract's JSON fields and rejects bad input", "[eval][cli]") {
+  epitrack::test::TempDir dir("eval");
+  std::string err;
+  const std::string gt =
+      "# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 0 1 0 0 0 1\n3 3 1 1 0 0 0 "
+      "1\n";
+  REQUIRE(epitrack::hal::writeTextAtomic(dir.file("gt.txt"), gt, err));
+  REQUIRE(epitrack::hal::writeTextAtomic(dir.file("k.txt"), "600 600 351.5 287.5 704 576\n", err));
+  REQUIRE(epitrack::hal::writeTextAtomic(dir.file("k2.txt"), "606 606 351.5 287.5 704 576\n", err));
+  const std::string exe = epitrack::test::binaryPath("tools/eval/epitrack-eval");
+  REQUIRE(epitrack::test::run(exe + " --gt " + dir.file("gt.txt") + " --est " + dir.file("gt.txt") +
+                              " --gt-intrinsics " + dir.file("k.txt") + " --est-intrinsics " +
+                              dir.file("k2.txt") + " > " + dir.file("out.json")) == 0);
+  std::string out;
+  REQUIRE(epitrack::hal::readTextFile(dir.file("out.json"), out, err));
+  for (const char* key : {"\"ate_rmse\"", "\"ate_rmse_rel\"", "\"rot_err_deg_mean\"",
+                          "\"rpe_trans_rel\"", "\"focal_err_pct\": 1", "\"matched_frames\": 4"}) {
+    INFO(out);
+    REQUIRE(out.find(key) != std::string::npos);
+  }
+  REQUIRE(epitrack::test::run(exe + " --gt /nonexistent --est " + dir.file("gt.txt") +
+                              " 2>/dev/null") == 2);
+  REQUIRE(epitrack::test::run(exe + " --gt " + dir.file("gt.txt") + " 2>/dev/null") == 2);
+  REQUIRE(epitrack::test::run(exe + " --gt " + dir.file("gt.txt") + " --est " + dir.file("gt.txt") +
+                              " --gt-intrinsics " + dir.file("k.txt") + " 2>/dev/null") == 2);
+}

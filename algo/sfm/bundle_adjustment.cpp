@@ -1,0 +1,394 @@
+#include "algo/sfm/bundle_adjustment.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace epitrack {
+namespace {
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return S;
+}
+
+// exp([w]x) by Rodrigues' formula, with the series near zero.
+Eigen::Matrix3d expSo3(const Eigen::Vector3d& w) {
+  const double theta2 = w.squaredNorm();
+  const Eigen::Matrix3d W = skew(w);
+  if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
+  const double theta = std::sqrt(theta2);
+  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
+         ((1.0 - std::cos(theta)) / theta2) * (W * W);
+}
+
+// Huber weight and cost of a residual of norm e (threshold h; h <= 0: plain least squares).
+double huberWeight(double e, double h) { return (h <= 0.0 || e <= h) ? 1.0 : h / e; }
+double huberCost(double e, double h) {
+  return (h <= 0.0 || e <= h) ? 0.5 * e * e : h * (e - 0.5 * h);
+}
+
+constexpr double kMinDepth = 1e-8;
+
+}  // namespace
+
+BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observations)
+    : max_cameras_(max_cameras), max_points_(max_points), max_observations_(max_observations) {
+  const auto nc = static_cast<std::size_t>(std::max(0, max_cameras));
+  const auto np = static_cast<std::size_t>(std::max(0, max_points));
+  const auto no = static_cast<std::size_t>(std::max(0, max_observations));
+  camera_slot_.resize(nc);
+  point_obs_offset_.resize(np + 1);
+  point_obs_index_.resize(no);
+  point_obs_cursor_.resize(np);
+  V_.resize(np);
+  gp_.resize(np);
+  Vinv_.resize(np);
+  dp_.resize(np);
+  Wc_.resize(no);
+  Wk_.resize(no);
+  cameras_backup_.resize(nc);
+  points_backup_.resize(np);
+  const Eigen::Index n = 6 * static_cast<Eigen::Index>(nc) + 3;
+  S_.resize(n, n);
+  A_.resize(n, n);
+  rhs_.resize(n);
+  b_.resize(n);
+  delta_.resize(n);
+  diag_.resize(n);
+}
+
+bool BundleAdjuster::project(const BaCamera& c, const BaIntrinsics& k, const Eigen::Vector3d& X,
+                             Eigen::Vector2d& uv) {
+  const Eigen::Vector3d p = c.R_cw * X + c.t_cw;
+  if (!(p.z() > kMinDepth)) return false;
+  const double xn = p.x() / p.z();
+  const double yn = p.y() / p.z();
+  const double r2 = xn * xn + yn * yn;
+  const double d = 1.0 + k.k1 * r2 + k.k2 * r2 * r2;
+  uv = Eigen::Vector2d(k.f * d * xn + k.cx, k.f * k.aspect * d * yn + k.cy);
+  return true;
+}
+
+bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics& k,
+                                          const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+                                          Eigen::Matrix<double, 2, 6>& J_cam,
+                                          Eigen::Matrix<double, 2, 3>& J_point,
+                                          Eigen::Matrix<double, 2, 3>& J_intr) {
+  const Eigen::Vector3d RX = c.R_cw * X;
+  const Eigen::Vector3d p = RX + c.t_cw;
+  if (!(p.z() > kMinDepth)) return false;
+  const double iz = 1.0 / p.z();
+  const double xn = p.x() * iz;
+  const double yn = p.y() * iz;
+  const double r2 = xn * xn + yn * yn;
+  const double d = 1.0 + k.k1 * r2 + k.k2 * r2 * r2;
+  const double dd_dr2 = k.k1 + 2.0 * k.k2 * r2;
+  const double fx = k.f;
+  const double fy = k.f * k.aspect;
+  uv = Eigen::Vector2d(fx * d * xn + k.cx, fy * d * yn + k.cy);
+  // d(uv)/d(xn, yn)
+  Eigen::Matrix2d J_n;
+  J_n(0, 0) = fx * (d + 2.0 * xn * xn * dd_dr2);
+  J_n(0, 1) = fx * 2.0 * xn * yn * dd_dr2;
+  J_n(1, 0) = fy * 2.0 * xn * yn * dd_dr2;
+  J_n(1, 1) = fy * (d + 2.0 * yn * yn * dd_dr2);
+  // d(xn, yn)/d(p)
+  Eigen::Matrix<double, 2, 3> J_p;
+  J_p << iz, 0.0, -xn * iz, 0.0, iz, -yn * iz;
+  const Eigen::Matrix<double, 2, 3> J_uv_p = J_n * J_p;
+  // p = exp(dtheta) R X + t + dt  =>  dp/ddtheta = -[R X]x, dp/ddt = I, dp/dX = R.
+  J_cam.leftCols<3>() = -J_uv_p * skew(RX);
+  J_cam.rightCols<3>() = J_uv_p;
+  J_point = J_uv_p * c.R_cw;
+  J_intr(0, 0) = d * xn;
+  J_intr(1, 0) = k.aspect * d * yn;
+  J_intr(0, 1) = fx * xn * r2;
+  J_intr(1, 1) = fy * yn * r2;
+  J_intr(0, 2) = fx * xn * r2 * r2;
+  J_intr(1, 2) = fy * yn * r2 * r2;
+  return true;
+}
+
+double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
+                                    std::span<const Eigen::Vector3d> points,
+                                    std::span<const BaObservation> observations,
+                                    const BaIntrinsics& k, double huber, double* rms) const {
+  double cost = 0.0;
+  double sq = 0.0;
+  for (const BaObservation& o : observations) {
+    Eigen::Vector2d uv;
+    if (!project(cameras[static_cast<std::size_t>(o.camera)], k,
+                 points[static_cast<std::size_t>(o.point)], uv)) {
+      cost += 1e6;  // behind the camera: never an improvement
+      sq += 1e6;
+      continue;
+    }
+    const double e = (uv - o.xy).norm();
+    cost += huberCost(e, huber);
+    sq += e * e;
+  }
+  if (rms != nullptr)
+    *rms = observations.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(observations.size()));
+  return cost;
+}
+
+BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
+                                              std::span<const uint8_t> camera_fixed,
+                                              std::span<Eigen::Vector3d> points,
+                                              std::span<const uint8_t> points_fixed,
+                                              std::span<const BaObservation> observations,
+                                              BaIntrinsics& k,
+                                              const BundleAdjustmentOptions& options) {
+  using Status = BundleAdjustmentSummary::Status;
+  BundleAdjustmentSummary summary;
+  const auto nc = static_cast<int>(cameras.size());
+  const auto np = static_cast<int>(points.size());
+  const auto no = static_cast<int>(observations.size());
+  if (nc > max_cameras_ || np > max_points_ || no > max_observations_ ||
+      camera_fixed.size() != cameras.size() ||
+      (!points_fixed.empty() && points_fixed.size() != points.size()) ||
+      options.refine_distortion < 0 || options.refine_distortion > 2) {
+    return summary;
+  }
+  for (const BaObservation& o : observations) {
+    if (o.camera < 0 || o.camera >= nc || o.point < 0 || o.point >= np || !o.xy.allFinite())
+      return summary;
+  }
+  // Reduced-system layout: 6 per free camera, then the intrinsics.
+  int n_free = 0;
+  for (int c = 0; c < nc; ++c)
+    camera_slot_[static_cast<std::size_t>(c)] =
+        camera_fixed[static_cast<std::size_t>(c)] != 0 ? -1 : 6 * n_free++;
+  const int nk = (options.refine_focal ? 1 : 0) + options.refine_distortion;
+  const int k0 = 6 * n_free;  // first intrinsics index
+  const int n = k0 + nk;
+  // Which intrinsics columns (f, k1, k2) are refined, in order.
+  int kcol[3] = {0, 0, 0};
+  {
+    int j = 0;
+    if (options.refine_focal) kcol[j++] = 0;
+    for (int d = 0; d < options.refine_distortion; ++d) kcol[j++] = 1 + d;
+  }
+  // Observations grouped by point (CSR).
+  std::fill(point_obs_offset_.begin(), point_obs_offset_.begin() + np + 1, 0);
+  for (const BaObservation& o : observations)
+    ++point_obs_offset_[static_cast<std::size_t>(o.point) + 1];
+  for (int p = 0; p < np; ++p)
+    point_obs_offset_[static_cast<std::size_t>(p) + 1] +=
+        point_obs_offset_[static_cast<std::size_t>(p)];
+  for (int p = 0; p < np; ++p)
+    point_obs_cursor_[static_cast<std::size_t>(p)] = point_obs_offset_[static_cast<std::size_t>(p)];
+  for (int i = 0; i < no; ++i) {
+    const auto p = static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].point);
+    point_obs_index_[static_cast<std::size_t>(point_obs_cursor_[p]++)] = i;
+  }
+  const auto pointFixed = [&](int p) {
+    return !points_fixed.empty() && points_fixed[static_cast<std::size_t>(p)] != 0;
+  };
+
+  double rms = 0.0;
+  double cost = evaluateCost(cameras, points, observations, k, options.huber_px, &rms);
+  summary.initial_cost = cost;
+  summary.initial_rms_px = rms;
+  if (!std::isfinite(cost)) {
+    summary.status = Status::kInvalidInput;
+    return summary;
+  }
+  double lambda = options.initial_lambda;
+  summary.status = Status::kMaxIterations;
+  for (int iter = 0; iter < options.max_iterations; ++iter) {
+    summary.iterations = iter + 1;
+    // -- linearise: U (in S), g_c (in rhs), V, g_p, and the coupling blocks --
+    Eigen::MatrixXd& H = S_;
+    H.topLeftCorner(n, n).setZero();
+    Eigen::VectorXd& g = rhs_;
+    g.head(n).setZero();
+    for (int p = 0; p < np; ++p) {
+      V_[static_cast<std::size_t>(p)].setZero();
+      gp_[static_cast<std::size_t>(p)].setZero();
+    }
+    for (int i = 0; i < no; ++i) {
+      const BaObservation& o = observations[static_cast<std::size_t>(i)];
+      const auto pi = static_cast<std::size_t>(o.point);
+      Eigen::Vector2d uv;
+      Eigen::Matrix<double, 2, 6> Jc;
+      Eigen::Matrix<double, 2, 3> Jp;
+      Eigen::Matrix<double, 2, 3> Jk_all;
+      Wc_[static_cast<std::size_t>(i)].setZero();
+      Wk_[static_cast<std::size_t>(i)].setZero();
+      if (!projectWithJacobians(cameras[static_cast<std::size_t>(o.camera)], k, points[pi], uv, Jc,
+                                Jp, Jk_all))
+        continue;
+      const Eigen::Vector2d r = uv - o.xy;
+      const double w = huberWeight(r.norm(), options.huber_px);
+      Eigen::Matrix<double, 2, 3> Jk = Eigen::Matrix<double, 2, 3>::Zero();
+      for (int j = 0; j < nk; ++j) Jk.col(j) = Jk_all.col(kcol[j]);
+      const int s = camera_slot_[static_cast<std::size_t>(o.camera)];
+      if (s >= 0) {
+        H.block<6, 6>(s, s) += w * Jc.transpose() * Jc;
+        g.segment<6>(s) += w * Jc.transpose() * r;
+        Wc_[static_cast<std::size_t>(i)] = w * Jc.transpose() * Jp;
+        if (nk > 0) H.block(s, k0, 6, nk) += w * Jc.transpose() * Jk.leftCols(nk);
+      }
+      if (nk > 0) {
+        H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
+        g.segment(k0, nk) += w * Jk.leftCols(nk).transpose() * r;
+        Wk_[static_cast<std::size_t>(i)] = w * Jk.transpose() * Jp;
+      }
+      V_[pi] += w * Jp.transpose() * Jp;
+      gp_[pi] += w * Jp.transpose() * r;
+    }
+    // Symmetrise the camera-intrinsics coupling.
+    if (nk > 0) {
+      for (int c = 0; c < k0; ++c)
+        for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
+    }
+    for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+    const double grad_norm = g.head(n).norm();
+
+    // -- damped solves until a step lowers the cost --
+    bool accepted = false;
+    bool stop = false;
+    while (!accepted) {
+      // Reduced camera system: (U + lambda D) - sum_p W_p (V_p + lambda D_p)^-1 W_p^T, rebuilt from
+      // the undamped blocks at each attempt, in the preallocated A_ / b_.
+      auto A = A_.topLeftCorner(n, n);
+      A = H.topLeftCorner(n, n);
+      for (int i = 0; i < n; ++i) A(i, i) = diag_(i) * (1.0 + lambda) + 1e-12;
+      auto b = b_.head(n);
+      b = -g.head(n);
+      for (int p = 0; p < np; ++p) {
+        if (pointFixed(p)) continue;
+        const auto pp = static_cast<std::size_t>(p);
+        Eigen::Matrix3d Vd = V_[pp];
+        for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
+        const Eigen::Matrix3d Vinv = Vd.inverse();
+        Vinv_[pp] = Vinv;
+        const int begin = point_obs_offset_[pp];
+        const int end = point_obs_offset_[pp + 1];
+        Eigen::Matrix3d Wk_sum = Eigen::Matrix3d::Zero();
+        for (int a = begin; a < end; ++a)
+          Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+        const Eigen::Vector3d Vg = Vinv * gp_[pp];
+        for (int a = begin; a < end; ++a) {
+          const int ia = point_obs_index_[static_cast<std::size_t>(a)];
+          const int sa = camera_slot_[static_cast<std::size_t>(
+              observations[static_cast<std::size_t>(ia)].camera)];
+          if (sa < 0) continue;
+          const Eigen::Matrix<double, 6, 3> WaV = Wc_[static_cast<std::size_t>(ia)] * Vinv;
+          b.segment<6>(sa) += WaV * gp_[pp];
+          for (int bb = begin; bb < end; ++bb) {
+            const int ib = point_obs_index_[static_cast<std::size_t>(bb)];
+            const int sb = camera_slot_[static_cast<std::size_t>(
+                observations[static_cast<std::size_t>(ib)].camera)];
+            if (sb < sa) continue;  // upper triangle, mirrored below
+            A.block<6, 6>(sa, sb) -= WaV * Wc_[static_cast<std::size_t>(ib)].transpose();
+          }
+          if (nk > 0) A.block(sa, k0, 6, nk) -= (WaV * Wk_sum.transpose()).leftCols(nk);
+        }
+        if (nk > 0) {
+          A.block(k0, k0, nk, nk) -= (Wk_sum * Vinv * Wk_sum.transpose()).topLeftCorner(nk, nk);
+          b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
+        }
+      }
+      // Mirror the upper triangle.
+      for (int i = 0; i < n; ++i)
+        for (int j = i + 1; j < n; ++j) A(j, i) = A(i, j);
+      // In-place Cholesky (the damped reduced system is positive definite); no allocation.
+      Eigen::Ref<Eigen::MatrixXd> A_ref(A);
+      const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(A_ref);
+      auto dc = delta_.head(n);
+      dc = b;
+      if (llt.info() == Eigen::Success) llt.solveInPlace(dc);
+      if (llt.info() != Eigen::Success || !dc.allFinite()) {
+        lambda *= 10.0;
+        if (lambda > 1e12) {
+          summary.status = Status::kNumericalFailure;
+          stop = true;
+          break;
+        }
+        continue;
+      }
+      // Back-substitution: dp = V^-1 (-g_p - W^T dc).
+      double step2 = dc.squaredNorm();
+      for (int p = 0; p < np; ++p) {
+        const auto pp = static_cast<std::size_t>(p);
+        if (pointFixed(p)) {
+          dp_[pp].setZero();
+          continue;
+        }
+        Eigen::Vector3d rhs = -gp_[pp];
+        for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a) {
+          const int ia = point_obs_index_[static_cast<std::size_t>(a)];
+          const int sa = camera_slot_[static_cast<std::size_t>(
+              observations[static_cast<std::size_t>(ia)].camera)];
+          if (sa >= 0) rhs -= Wc_[static_cast<std::size_t>(ia)].transpose() * dc.segment<6>(sa);
+          if (nk > 0)
+            rhs -= Wk_[static_cast<std::size_t>(ia)].topRows(nk).transpose() * dc.segment(k0, nk);
+        }
+        dp_[pp] = Vinv_[pp] * rhs;
+        step2 += dp_[pp].squaredNorm();
+      }
+      // Try the step.
+      for (int c = 0; c < nc; ++c)
+        cameras_backup_[static_cast<std::size_t>(c)] = cameras[static_cast<std::size_t>(c)];
+      for (int p = 0; p < np; ++p)
+        points_backup_[static_cast<std::size_t>(p)] = points[static_cast<std::size_t>(p)];
+      const BaIntrinsics k_backup = k;
+      for (int c = 0; c < nc; ++c) {
+        const int s = camera_slot_[static_cast<std::size_t>(c)];
+        if (s < 0) continue;
+        BaCamera& cam = cameras[static_cast<std::size_t>(c)];
+        // x_c = exp([dtheta]x) R X + t + dt (the parametrisation of the Jacobians).
+        cam.R_cw = expSo3(dc.segment<3>(s)) * cam.R_cw;
+        cam.t_cw += dc.segment<3>(s + 3);
+      }
+      for (int p = 0; p < np; ++p)
+        points[static_cast<std::size_t>(p)] += dp_[static_cast<std::size_t>(p)];
+      for (int j = 0; j < nk; ++j) {
+        const double v = dc(k0 + j);
+        if (kcol[j] == 0) k.f += v;
+        if (kcol[j] == 1) k.k1 += v;
+        if (kcol[j] == 2) k.k2 += v;
+      }
+      double new_rms = 0.0;
+      const double new_cost =
+          evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
+      if (std::isfinite(new_cost) && new_cost < cost) {
+        const double decrease = (cost - new_cost) / std::max(cost, 1e-300);
+        cost = new_cost;
+        rms = new_rms;
+        lambda = std::max(lambda / 3.0, 1e-15);
+        accepted = true;
+        double scale2 = 0.0;
+        for (int p = 0; p < np; ++p) scale2 += points[static_cast<std::size_t>(p)].squaredNorm();
+        for (int c = 0; c < nc; ++c)
+          scale2 += cameras[static_cast<std::size_t>(c)].t_cw.squaredNorm();
+        if (decrease < options.function_tolerance ||
+            step2 <= options.step_tolerance * options.step_tolerance * (scale2 + 1e-300)) {
+          summary.status = Status::kConverged;
+          stop = true;
+        }
+      } else {
+        for (int c = 0; c < nc; ++c)
+          cameras[static_cast<std::size_t>(c)] = cameras_backup_[static_cast<std::size_t>(c)];
+        for (int p = 0; p < np; ++p)
+          points[static_cast<std::size_t>(p)] = points_backup_[static_cast<std::size_t>(p)];
+        k = k_backup;
+        lambda *= 4.0;
+        if (lambda > 1e12 || grad_norm < 1e-14) {
+          summary.status = Status::kConverged;  // no step improves: at a minimum
+          stop = true;
+          break;
+        }
+      }
+    }
+    if (stop) break;
+  }
+  summary.final_cost = cost;
+  summary.final_rms_px = rms;
+  return summary;
+}
+
+}  // namespace epitrack

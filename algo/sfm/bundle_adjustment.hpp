@@ -1,0 +1,126 @@
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+namespace epitrack {
+
+/// A camera of the bundle adjustment: the world-to-camera transform x_c = R_cw X + t_cw.
+struct BaCamera {
+  Eigen::Matrix3d R_cw = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t_cw = Eigen::Vector3d::Zero();
+};
+
+/// Intrinsics shared by every camera: fx = f, fy = f * aspect, principal point fixed, radial
+/// distortion k1, k2 on normalized coordinates (ARCHITECTURE.md convention).
+struct BaIntrinsics {
+  double f = 1.0;
+  double aspect = 1.0;
+  double cx = 0.0;
+  double cy = 0.0;
+  double k1 = 0.0;
+  double k2 = 0.0;
+};
+
+/// One measurement: point `point` seen by camera `camera` at pixel `xy`.
+struct BaObservation {
+  int camera = 0;
+  int point = 0;
+  Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+};
+
+struct BundleAdjustmentOptions {
+  int max_iterations = 30;
+  double huber_px = 1.0;         ///< Huber loss threshold in pixels (<= 0: plain least squares)
+  bool refine_focal = false;     ///< also estimate the shared focal length
+  int refine_distortion = 0;     ///< 0: none, 1: k1, 2: k1 and k2
+  double initial_lambda = 1e-4;  ///< Levenberg-Marquardt damping (relative to the diagonal)
+  double function_tolerance = 1e-10;  ///< stop when the relative cost decrease falls below
+  double step_tolerance = 1e-12;      ///< stop when the relative step falls below
+};
+
+struct BundleAdjustmentSummary {
+  enum class Status {
+    kConverged,         ///< a tolerance was met
+    kMaxIterations,     ///< ran out of iterations (the result is still the best found)
+    kInvalidInput,      ///< indices out of range, capacities exceeded, non-finite values
+    kNumericalFailure,  ///< the normal equations could not be solved
+  };
+  Status status = Status::kInvalidInput;
+  int iterations = 0;
+  double initial_cost = 0.0;  ///< 1/2 sum of robustified squared residuals (pixels^2)
+  double final_cost = 0.0;
+  double initial_rms_px = 0.0;  ///< RMS reprojection error before and after (plain, not robust)
+  double final_rms_px = 0.0;
+};
+
+/// Sparse bundle adjustment by Levenberg-Marquardt with the Schur complement (Triggs et al.,
+/// "Bundle Adjustment — A Modern Synthesis", §6; Hartley & Zisserman §A6.3): the point blocks
+/// (3x3) are eliminated and the reduced camera system (6 per free camera + the shared intrinsics)
+/// is solved densely by an in-place Cholesky factorisation. Residuals are robustified by the Huber
+/// loss (IRLS weights). Rotations are updated on the left, R <- exp([dtheta]x) R.
+///
+/// Gauge: monocular BA is defined up to a similarity. Mark at least one camera fixed (its pose
+/// stays); the remaining scale freedom is held by the damping (and should be fixed by the caller,
+/// e.g. by renormalising the result).
+///
+/// Storage is sized at construction from the capacities; `solve` does not allocate.
+class BundleAdjuster {
+ public:
+  BundleAdjuster(int max_cameras, int max_points, int max_observations);
+
+  /// Refines `cameras` (except those with camera_fixed[i] != 0), every point of `points`, and the
+  /// intrinsics requested by `options`, in place. `points_fixed` may be empty (all free).
+  BundleAdjustmentSummary solve(std::span<BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+                                std::span<Eigen::Vector3d> points,
+                                std::span<const uint8_t> points_fixed,
+                                std::span<const BaObservation> observations,
+                                BaIntrinsics& intrinsics, const BundleAdjustmentOptions& options);
+
+  /// Projection used by the adjustment (for tests and callers): false when behind the camera.
+  static bool project(const BaCamera& camera, const BaIntrinsics& k, const Eigen::Vector3d& X,
+                      Eigen::Vector2d& uv);
+
+  /// Analytic Jacobians of the projection with respect to the camera update (dtheta, dt), the point
+  /// and the intrinsics (f, k1, k2). Exposed for the numeric-vs-analytic test.
+  static bool projectWithJacobians(const BaCamera& camera, const BaIntrinsics& k,
+                                   const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+                                   Eigen::Matrix<double, 2, 6>& J_cam,
+                                   Eigen::Matrix<double, 2, 3>& J_point,
+                                   Eigen::Matrix<double, 2, 3>& J_intr);
+
+ private:
+  double evaluateCost(std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
+                      std::span<const BaObservation> observations, const BaIntrinsics& k,
+                      double huber, double* rms) const;
+
+  int max_cameras_;
+  int max_points_;
+  int max_observations_;
+  // Workspaces (sized in the constructor).
+  std::vector<int> camera_slot_;       // reduced-system slot of each camera, -1 if fixed
+  std::vector<int> point_obs_offset_;  // CSR over points: observations of point p
+  std::vector<int> point_obs_index_;
+  std::vector<int> point_obs_cursor_;
+  std::vector<Eigen::Matrix3d> V_;               // per point J_p^T W J_p
+  std::vector<Eigen::Vector3d> gp_;              // per point J_p^T W r
+  std::vector<Eigen::Matrix<double, 6, 3>> Wc_;  // per observation J_c^T W J_p
+  std::vector<Eigen::Matrix<double, 3, 3>> Wk_;  // per observation J_k^T W J_p
+  std::vector<Eigen::Matrix3d> Vinv_;
+  std::vector<Eigen::Vector3d> dp_;
+  std::vector<BaCamera> cameras_backup_;
+  std::vector<Eigen::Vector3d> points_backup_;
+  Eigen::MatrixXd S_;    // undamped reduced-system blocks U (camera + intrinsics)
+  Eigen::MatrixXd A_;    // damped Schur complement, factorised in place
+  Eigen::VectorXd rhs_;  // gradient of the reduced parameters
+  Eigen::VectorXd b_;
+  Eigen::VectorXd delta_;
+  Eigen::VectorXd diag_;
+};
+
+}  // namespace epitrack

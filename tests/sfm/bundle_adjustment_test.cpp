@@ -1,0 +1,231 @@
+#include "algo/sfm/bundle_adjustment.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "tools/synth/random.hpp"
+
+using epitrack::BaCamera;
+using epitrack::BaIntrinsics;
+using epitrack::BaObservation;
+using epitrack::BundleAdjuster;
+using epitrack::BundleAdjustmentOptions;
+using Status = epitrack::BundleAdjustmentSummary::Status;
+
+namespace {
+
+struct Problem {
+  std::vector<BaCamera> cameras;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<BaObservation> obs;
+  BaIntrinsics k;
+};
+
+// Cameras on an arc looking at a cloud of points around the origin; exact observations plus noise.
+Problem makeProblem(int n_cams, int n_points, double noise_px, uint64_t seed, double k1 = 0.0,
+                    double k2 = 0.0, double spread = 2.0) {
+  epitrack::synth::SplitMix64 rng(seed);
+  Problem pr;
+  pr.k = BaIntrinsics{600.0, 1.0, 351.5, 287.5, k1, k2};
+  for (int i = 0; i < n_points; ++i) {
+    pr.points.emplace_back(rng.uniform(-spread, spread), rng.uniform(-spread, spread),
+                           rng.uniform(-1, 1));
+  }
+  for (int c = 0; c < n_cams; ++c) {
+    const double a = -0.6 + 1.2 * c / std::max(1, n_cams - 1);
+    const Eigen::Vector3d eye(8.0 * std::sin(a), 1.0 * std::cos(3 * a), -8.0 * std::cos(a));
+    const Eigen::Vector3d f = (-eye).normalized();
+    const Eigen::Vector3d r = Eigen::Vector3d::UnitY().cross(f).normalized();
+    Eigen::Matrix3d R_wc;
+    R_wc.col(0) = r;
+    R_wc.col(1) = f.cross(r);
+    R_wc.col(2) = f;
+    BaCamera cam;
+    cam.R_cw = R_wc.transpose();
+    cam.t_cw = -cam.R_cw * eye;
+    pr.cameras.push_back(cam);
+  }
+  for (int c = 0; c < n_cams; ++c) {
+    for (int i = 0; i < n_points; ++i) {
+      Eigen::Vector2d uv;
+      if (!BundleAdjuster::project(pr.cameras[static_cast<std::size_t>(c)], pr.k,
+                                   pr.points[static_cast<std::size_t>(i)], uv))
+        continue;
+      uv += noise_px * Eigen::Vector2d(rng.gaussian(), rng.gaussian());
+      pr.obs.push_back({c, i, uv});
+    }
+  }
+  return pr;
+}
+
+double maxPointError(const Problem& a, const Problem& b) {
+  double e = 0;
+  for (std::size_t i = 0; i < a.points.size(); ++i)
+    e = std::max(e, (a.points[i] - b.points[i]).norm());
+  return e;
+}
+
+}  // namespace
+
+TEST_CASE("Analytic BA Jacobians match central differences", "[sfm][ba]") {
+  epitrack::synth::SplitMix64 rng(5);
+  for (int trial = 0; trial < 50; ++trial) {
+    BaCamera c;
+    c.R_cw =
+        Eigen::AngleAxisd(rng.uniform(-1, 1),
+                          Eigen::Vector3d(rng.uniform(-1, 1), rng.uniform(-1, 1), 1).normalized())
+            .toRotationMatrix();
+    c.t_cw = Eigen::Vector3d(rng.uniform(-1, 1), rng.uniform(-1, 1), 5.0);
+    const Eigen::Vector3d X(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    BaIntrinsics k{rng.uniform(300, 900),  rng.uniform(0.95, 1.05), 320, 240,
+                   rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1)};
+    Eigen::Vector2d uv;
+    Eigen::Matrix<double, 2, 6> Jc;
+    Eigen::Matrix<double, 2, 3> Jp;
+    Eigen::Matrix<double, 2, 3> Jk;
+    REQUIRE(BundleAdjuster::projectWithJacobians(c, k, X, uv, Jc, Jp, Jk));
+    const double h = 1e-6;
+    for (int j = 0; j < 6; ++j) {
+      BaCamera cp = c;
+      BaCamera cm = c;
+      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+      d(j) = h;
+      const auto apply = [](BaCamera& cam, const Eigen::Matrix<double, 6, 1>& dd) {
+        const Eigen::Vector3d w = dd.head<3>();
+        if (w.norm() > 0)
+          cam.R_cw = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() * cam.R_cw;
+        cam.t_cw += dd.tail<3>();
+      };
+      apply(cp, d);
+      apply(cm, -d);
+      Eigen::Vector2d up;
+      Eigen::Vector2d um;
+      BundleAdjuster::project(cp, k, X, up);
+      BundleAdjuster::project(cm, k, X, um);
+      const Eigen::Vector2d num = (up - um) / (2 * h);
+      REQUIRE((num - Jc.col(j)).norm() < 1e-5 * (1 + Jc.col(j).norm()));
+    }
+    for (int j = 0; j < 3; ++j) {
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      d(j) = h;
+      Eigen::Vector2d up;
+      Eigen::Vector2d um;
+      BundleAdjuster::project(c, k, X + d, up);
+      BundleAdjuster::project(c, k, X - d, um);
+      REQUIRE(((up - um) / (2 * h) - Jp.col(j)).norm() < 1e-5 * (1 + Jp.col(j).norm()));
+    }
+    for (int j = 0; j < 3; ++j) {
+      BaIntrinsics kp = k;
+      BaIntrinsics km = k;
+      double* fp = j == 0 ? &kp.f : (j == 1 ? &kp.k1 : &kp.k2);
+      double* fm = j == 0 ? &km.f : (j == 1 ? &km.k1 : &km.k2);
+      *fp += h;
+      *fm -= h;
+      Eigen::Vector2d up;
+      Eigen::Vector2d um;
+      BundleAdjuster::project(c, kp, X, up);
+      BundleAdjuster::project(c, km, X, um);
+      REQUIRE(((up - um) / (2 * h) - Jk.col(j)).norm() < 1e-5 * (1 + Jk.col(j).norm()));
+    }
+  }
+}
+
+TEST_CASE("BA recovers perturbed cameras and points exactly without noise", "[sfm][ba]") {
+  const Problem truth = makeProblem(8, 120, 0.0, 11);
+  Problem p = truth;
+  epitrack::synth::SplitMix64 rng(3);
+  for (std::size_t c = 1; c + 1 < p.cameras.size(); ++c) {
+    p.cameras[c].R_cw =
+        Eigen::AngleAxisd(0.02, Eigen::Vector3d(rng.uniform(-1, 1), 1, 0).normalized()) *
+        p.cameras[c].R_cw;
+    p.cameras[c].t_cw +=
+        Eigen::Vector3d(rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1));
+  }
+  for (auto& X : p.points)
+    X += Eigen::Vector3d(rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05),
+                         rng.uniform(-0.05, 0.05));
+  std::vector<uint8_t> fixed(p.cameras.size(), 0);
+  fixed.front() = 1;  // first and last fixed: the gauge (including scale) is determined
+  fixed.back() = 1;
+  BundleAdjuster ba(16, 200, 2000);
+  BundleAdjustmentOptions o;
+  o.max_iterations = 50;
+  const auto s = ba.solve(p.cameras, fixed, p.points, {}, p.obs, p.k, o);
+  INFO("rms " << s.initial_rms_px << " -> " << s.final_rms_px << " in " << s.iterations
+              << " iterations");
+  REQUIRE(s.status == Status::kConverged);
+  REQUIRE(s.initial_rms_px > 5.0);
+  REQUIRE(s.final_rms_px < 1e-6);
+  REQUIRE(maxPointError(p, truth) < 1e-6);
+  for (std::size_t c = 0; c < p.cameras.size(); ++c) {
+    REQUIRE((p.cameras[c].R_cw - truth.cameras[c].R_cw).norm() < 1e-8);
+    REQUIRE((p.cameras[c].t_cw - truth.cameras[c].t_cw).norm() < 1e-7);
+  }
+}
+
+TEST_CASE("BA estimates the shared focal length and radial distortion", "[sfm][ba]") {
+  // Points filling the field of view (normalized radius up to ~0.6), so k2 is observable too.
+  const Problem truth = makeProblem(10, 300, 0.3, 21, -0.12, 0.03, 4.5);
+  Problem p = truth;
+  p.k.f *= 1.04;
+  p.k.k1 = 0.0;
+  p.k.k2 = 0.0;
+  std::vector<uint8_t> fixed(p.cameras.size(), 0);
+  fixed.front() = 1;
+  fixed.back() = 1;
+  BundleAdjuster ba(16, 300, 3000);
+  BundleAdjustmentOptions o;
+  o.max_iterations = 100;
+  o.refine_focal = true;
+  o.refine_distortion = 2;
+  const auto s = ba.solve(p.cameras, fixed, p.points, {}, p.obs, p.k, o);
+  INFO("f " << p.k.f << " k1 " << p.k.k1 << " k2 " << p.k.k2 << " rms " << s.final_rms_px);
+  REQUIRE(s.final_rms_px < 0.3 * std::sqrt(2.0));  // at the noise level (0.3 px per axis)
+  REQUIRE(p.k.f == Approx(600.0).epsilon(0.002));
+  REQUIRE(p.k.k1 == Approx(-0.12).epsilon(0.05));
+  REQUIRE(std::abs(p.k.k2 - 0.03) < 0.015);
+}
+
+TEST_CASE("Huber loss keeps gross outliers from dragging the solution", "[sfm][ba]") {
+  const Problem truth = makeProblem(8, 150, 0.0, 31);
+  Problem p = truth;
+  epitrack::synth::SplitMix64 rng(8);
+  for (std::size_t i = 0; i < p.obs.size(); i += 23)
+    p.obs[i].xy += Eigen::Vector2d(rng.uniform(20, 40), rng.uniform(-40, 40));
+  for (auto& X : p.points) X += Eigen::Vector3d(0.02, -0.02, 0.01);
+  std::vector<uint8_t> fixed(p.cameras.size(), 0);
+  fixed.front() = 1;
+  fixed.back() = 1;
+  BundleAdjuster ba(16, 200, 2000);
+  BundleAdjustmentOptions robust;
+  robust.max_iterations = 100;
+  robust.huber_px = 1.0;
+  Problem a = p;
+  ba.solve(a.cameras, fixed, a.points, {}, a.obs, a.k, robust);
+  BundleAdjustmentOptions plain = robust;
+  plain.huber_px = 0.0;
+  Problem b = p;
+  ba.solve(b.cameras, fixed, b.points, {}, b.obs, b.k, plain);
+  const double robust_err = maxPointError(a, truth);
+  const double plain_err = maxPointError(b, truth);
+  INFO("max point error: Huber " << robust_err << ", least squares " << plain_err);
+  REQUIRE(robust_err < 0.5 * plain_err);
+}
+
+TEST_CASE("BA refuses invalid input instead of producing NaN", "[sfm][ba]") {
+  Problem p = makeProblem(3, 10, 0.0, 1);
+  std::vector<uint8_t> fixed(3, 0);
+  fixed[0] = 1;
+  BundleAdjuster ba(2, 100, 1000);  // too few cameras for the problem
+  BundleAdjustmentOptions o;
+  REQUIRE(ba.solve(p.cameras, fixed, p.points, {}, p.obs, p.k, o).status == Status::kInvalidInput);
+  BundleAdjuster ok(8, 100, 1000);
+  p.obs[0].point = 99;
+  REQUIRE(ok.solve(p.cameras, fixed, p.points, {}, p.obs, p.k, o).status == Status::kInvalidInput);
+  p.obs[0].point = 0;
+  p.obs[1].xy.x() = std::nan("");
+  REQUIRE(ok.solve(p.cameras, fixed, p.points, {}, p.obs, p.k, o).status == Status::kInvalidInput);
+}

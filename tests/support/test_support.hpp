@@ -55,9 +55,15 @@ inline bool haveSharedSequence(const std::string& name) {
   return false;
 }
 
-/// Path of a built command, e.g. binaryPath("tools/synth/epitrack-synth").
+/// Shell prefix that runs a built command, e.g. binaryPath("tools/synth/epitrack-synth"). In a
+/// cross build whose tests run under qemu-user, it starts with the emulator (and its -L prefix), so
+/// commands spawned by tests run too; use it only to build command lines, not as a file path.
 inline std::string binaryPath(const std::string& relative) {
+#ifdef EPITRACK_TEST_EMULATOR
+  return std::string(EPITRACK_TEST_EMULATOR) + " " + EPITRACK_BINARY_DIR + "/" + relative;
+#else
   return std::string(EPITRACK_BINARY_DIR) + "/" + relative;
+#endif
 }
 
 /// Runs a shell command, returns its exit status (or -1).

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Cross-builds epitrack for an ARM Linux board with Debian's cross compilers and multiarch target
+# libraries (installed here when missing), and optionally runs the core test suite under qemu-user.
+#   tools/cross.sh aarch64|armhf [BUILD_DIR] [--test]
+#   EPITRACK_JOBS        parallel jobs (default: number of cores)
+#   EPITRACK_CMAKE_ARGS  extra configure arguments (e.g. -DEPITRACK_CPU_FLAGS_FILE=toolchains/cpu/cortex-a72.cmake)
+#   EPITRACK_CTEST_ARGS  extra ctest arguments for --test (e.g. -L algo)
+# The build is Release with warnings as errors, tests on, the benchmark off (no OpenCV on the target).
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+
+usage() { echo "usage: tools/cross.sh aarch64|armhf [BUILD_DIR] [--test]" >&2; exit 2; }
+[ $# -ge 1 ] || usage
+arch=$1; shift
+case "$arch" in
+  aarch64) triple=aarch64-linux-gnu; group=cross-aarch64 ;;
+  armhf) triple=arm-linux-gnueabihf; group=cross-armhf ;;
+  -h|--help) sed -n '2,8p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  *) echo "cross.sh: unknown architecture '$arch' (aarch64 or armhf)" >&2; exit 2 ;;
+esac
+build=""
+run_tests=0
+for a in "$@"; do
+  case "$a" in
+    --test) run_tests=1 ;;
+    -*) echo "cross.sh: unknown option '$a'" >&2; exit 2 ;;
+    *) [ -z "$build" ] || usage; build=$a ;;
+  esac
+done
+build=${build:-$root/build/cross-$arch}
+jobs=${EPITRACK_JOBS:-$(nproc)}
+
+"$root/tools/deps.sh" base "$group"
+
+cmake -S "$root" -B "$build" -DCMAKE_TOOLCHAIN_FILE="$root/toolchains/$triple.cmake" \
+  -DCMAKE_BUILD_TYPE=Release -DEPITRACK_WERROR=ON -DEPITRACK_BUILD_TESTS=ON -DEPITRACK_BUILD_BENCH=OFF \
+  ${EPITRACK_CMAKE_ARGS:-} >/dev/null
+cmake --build "$build" -j "$jobs"
+echo "cross.sh: built $triple in $build"
+
+if [ "$run_tests" = 1 ]; then
+  # Target binaries (and the commands the tests spawn) run through qemu-user with the multiarch
+  # loader prefix; the toolchain file sets CMAKE_CROSSCOMPILING_EMULATOR for ctest.
+  ctest --test-dir "$build" -j "$jobs" --output-on-failure ${EPITRACK_CTEST_ARGS:-}
+fi

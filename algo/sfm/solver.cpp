@@ -1,0 +1,707 @@
+#include "algo/sfm/solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <Eigen/LU>
+#include <Eigen/SVD>
+
+#include "algo/geometry/essential.hpp"
+#include "algo/geometry/fundamental.hpp"
+#include "algo/geometry/homography.hpp"
+#include "algo/geometry/pnp.hpp"
+#include "algo/geometry/triangulation.hpp"
+#include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/sfm/bundle_adjustment.hpp"
+
+namespace epitrack {
+
+const char* toString(Solver::Status s) {
+  switch (s) {
+    case Solver::Status::kOk:
+      return "ok";
+    case Solver::Status::kTooFewFeatures:
+      return "too-few-features";
+    case Solver::Status::kNoMotion:
+      return "no-motion";
+    case Solver::Status::kRotationOnly:
+      return "rotation-only";
+    case Solver::Status::kPlanarScene:
+      return "planar-scene";
+    case Solver::Status::kInitFailed:
+      return "initialization-failed";
+  }
+  return "unknown";
+}
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+// Displacement statistic for pair selection: the 80th percentile of the track displacements, so
+// forward motion (where the centre barely moves) counts its moving periphery.
+double displacement(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b) {
+  std::vector<double> d(a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) d[i] = (a[i] - b[i]).norm();
+  if (d.empty()) return 0.0;
+  auto it = d.begin() + static_cast<std::ptrdiff_t>(d.size() * 8 / 10);
+  std::nth_element(d.begin(), it, d.end());
+  return *it;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
+PoseCw fromBa(const BaCamera& c) {
+  PoseCw p;
+  p.R_cw = c.R_cw;
+  p.t_cw = c.t_cw;
+  return p;
+}
+
+}  // namespace
+
+Solver::Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options)
+    : tracks_(tracks), width_(width), height_(height), options_(options) {
+  cx_ = (width - 1) * 0.5;
+  cy_ = (height - 1) * 0.5;
+  k1_ = options.k1;
+  k2_ = options.k2;
+  frames_.assign(static_cast<std::size_t>(tracks.frameCount()), SolvedFrame{});
+  point_of_track_.assign(static_cast<std::size_t>(tracks.trackCount()), -1);
+  points_.reserve(static_cast<std::size_t>(tracks.trackCount()));
+}
+
+Eigen::Vector2d Solver::normalized(const TrackObservation& o) const {
+  Eigen::Vector2d d((o.x - cx_) / f_, (o.y - cy_) / f_);
+  if (k1_ == 0.0 && k2_ == 0.0) return d;
+  // Invert x_d = x_u (1 + k1 r^2 + k2 r^4) by fixed-point iteration (converges for the mild
+  // distortion of ordinary lenses).
+  Eigen::Vector2d u = d;
+  for (int i = 0; i < 10; ++i) {
+    const double r2 = u.squaredNorm();
+    u = d / (1.0 + k1_ * r2 + k2_ * r2 * r2);
+  }
+  return u;
+}
+
+int Solver::commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
+                         std::vector<Eigen::Vector2d>* x2) const {
+  if (x1 != nullptr) x1->clear();
+  if (x2 != nullptr) x2->clear();
+  int n = 0;
+  for (const auto& o : tracks_.frame(a)) {
+    const TrackObservation* ob = tracks_.find(o.track, b);
+    if (ob == nullptr) continue;
+    ++n;
+    if (x1 != nullptr) x1->emplace_back(o.x, o.y);
+    if (x2 != nullptr) x2->emplace_back(ob->x, ob->y);
+  }
+  return n;
+}
+
+int Solver::solvedFrames() const {
+  int n = 0;
+  for (const auto& f : frames_) n += f.solved ? 1 : 0;
+  return n;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stage 1: focal length (paper §5.2).
+
+bool Solver::calibrate() {
+  const int n = tracks_.frameCount();
+  int max_obs = 0;
+  for (int f = 0; f < n; ++f)
+    max_obs = std::max(max_obs, static_cast<int>(tracks_.frame(f).size()));
+  if (n < 2 || max_obs < 8) {
+    status_ = Status::kTooFewFeatures;
+    message_ = "fewer than 8 tracked features: nothing to reconstruct";
+    return false;
+  }
+  FundamentalRansac fr(max_obs);
+  HomographyRansac hr(max_obs);
+  FundamentalOptions fo;
+  fo.ransac.seed = options_.seed;
+  std::vector<Eigen::Vector2d> x1, x2;
+  std::vector<Eigen::Matrix3d> Fs;
+  std::vector<int> f_pair_index;
+  // Pairs (i, j): j the first frame after i whose common tracks moved by a median of 8 % of the
+  // width (enough parallax to condition F), stepping i so that about 40 pairs cover the clip.
+  const int step = std::max(1, n / 40);
+  bool any_motion = false;
+  for (int i = 0; i + 1 < n; i += step) {
+    int j = -1;
+    for (int k = i + 1; k < n; ++k) {
+      const int c = commonTracks(i, k, &x1, &x2);
+      if (c < 30) break;
+      if (displacement(x1, x2) >= 0.08 * width_) {
+        j = k;
+        break;
+      }
+    }
+    if (j < 0) continue;
+    any_motion = true;
+    commonTracks(i, j, &x1, &x2);
+    const auto r = estimateFocalFromMatches(x1, x2, width_, height_, fr, hr, 0.5, fo);
+    PairFocal p;
+    p.frame_a = i;
+    p.frame_b = j;
+    p.homography = r.model == PairModel::kHomography;
+    if (r.model == PairModel::kFailed) continue;
+    if (p.homography) homographies_.push_back(r.H);
+    if (r.model == PairModel::kFundamental) {
+      Fs.push_back(r.F);
+      f_pair_index.push_back(static_cast<int>(pair_focals_.size()));
+    }
+    pair_focals_.push_back(p);
+  }
+  int homography_pairs = 0;
+  for (const auto& p : pair_focals_) homography_pairs += p.homography ? 1 : 0;
+  if (!any_motion) {
+    status_ = Status::kNoMotion;
+    message_ =
+        "the tracks never move by 8 % of the image width (80th percentile): no parallax to "
+        "reconstruct from";
+    return false;
+  }
+  if (!pair_focals_.empty() && homography_pairs * 10 >= static_cast<int>(pair_focals_.size()) * 8)
+    motion_ = "rotation-or-plane";
+
+  if (options_.focal_px > 0.0) {
+    f_ = options_.focal_px;
+    focal_source_ = "given";
+    focal_observable_ = true;
+    return true;
+  }
+  std::vector<FocalPairEstimate> per(Fs.size());
+  const auto r = calibrateFocalMultiPair(Fs, width_, height_, per);
+  for (std::size_t k = 0; k < Fs.size(); ++k) {
+    auto& p = pair_focals_[static_cast<std::size_t>(f_pair_index[k])];
+    p.focal_px = per[k].focal_px;
+    p.observable = per[k].observable;
+    p.coherent = per[k].coherent;
+  }
+  if (r.observable) {
+    f_ = r.focal_px;
+    focal_source_ = "self-calibrated";
+    focal_observable_ = true;
+  } else {
+    f_ = options_.fallback_focal_widths * std::max(width_, height_);
+    focal_source_ = "fallback";
+    focal_observable_ = false;
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stage 2: initial pair (paper §5.3), chosen among candidates by a score.
+
+bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<int>& tracks,
+                     std::vector<Eigen::Vector3d>& X) const {
+  std::vector<Eigen::Vector2d> x1, x2, n1, n2;
+  std::vector<int> ids;
+  for (const auto& o : tracks_.frame(a)) {
+    const TrackObservation* ob = tracks_.find(o.track, b);
+    if (ob == nullptr) continue;
+    x1.emplace_back(o.x, o.y);
+    x2.emplace_back(ob->x, ob->y);
+    n1.push_back(normalized(o));
+    n2.push_back(normalized(*ob));
+    ids.push_back(o.track);
+  }
+  if (x1.size() < 30) return false;
+  FundamentalRansac fr(static_cast<int>(x1.size()));
+  HomographyRansac hr(static_cast<int>(x1.size()));
+  FundamentalOptions fo;
+  fo.ransac.seed = options_.seed;
+  FundamentalResult f;
+  if (fr.estimate(x1, x2, fo, f) != FundamentalRansac::Status::kOk) return false;
+  HomographyResult h;
+  HomographyOptions ho;
+  ho.ransac.seed = options_.seed;
+  const bool have_h = hr.estimate(x1, x2, ho, h) == HomographyRansac::Status::kOk;
+  double gric_ratio = 1.0;
+  if (have_h) {
+    const auto sel = selectTwoViewModel(f.F, h.H, x1, x2, 0.5, f.mask, h.mask);
+    // With the focal known, a homography-like pair may still initialise (a plane seen with
+    // translation); a pure rotation will fail the parallax test below.
+    gric_ratio = sel.gric_h / std::max(1.0, sel.gric_f);
+  }
+  Eigen::Matrix3d K;
+  K << f_, 0, cx_, 0, f_, cy_, 0, 0, 1;
+  // Distortion is applied through `normalized`; E from F in pixels ignores it (refined below).
+  const Eigen::Matrix3d E = essentialFromFundamental(f.F, K, K);
+  RelativePoseResult rp;
+  if (!recoverRelativePose(E, n1, n2, f.mask, rp)) return false;
+  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
+  PoseCw pose = rp.pose;
+  refineRelativePose(n1, n2, f.mask, f_, pose);
+  TriangulationOptions to;
+  to.focal_px = f_;
+  to.min_parallax_deg = options_.min_point_parallax_deg;
+  to.max_reproj_px = options_.reproj_threshold_px;
+  const PoseCw poses[2] = {PoseCw{}, pose};
+  tracks.clear();
+  X.clear();
+  std::vector<double> parallax;
+  for (std::size_t i = 0; i < n1.size(); ++i) {
+    if (!f.mask[i]) continue;
+    const Eigen::Vector2d obs[2] = {n1[i], n2[i]};
+    const auto t = triangulatePoint(poses, obs, to);
+    if (t.status != TriangulationStatus::kOk) continue;
+    tracks.push_back(ids[i]);
+    X.push_back(t.X);
+    parallax.push_back(t.parallax_deg);
+  }
+  if (tracks.size() < 30) return false;
+  const double med_parallax = median(parallax);
+  // Score: well-triangulated points, weighted by the median parallax up to 8 degrees (more
+  // parallax conditions depth better) and discounted when a homography explains the pair.
+  score = static_cast<double>(tracks.size()) * std::min(med_parallax, 8.0) *
+          std::clamp(gric_ratio, 0.5, 1.0);
+  pose_b = pose;
+  return true;
+}
+
+bool Solver::initialize() {
+  const int n = tracks_.frameCount();
+  // Homographies everywhere: a rotating camera if the homographies are rotations for one focal
+  // (then a tripod solve), otherwise a plane (initialised below when the focal is known).
+  if (motion_ == "rotation-or-plane" && !homographies_.empty()) {
+    std::vector<double> fs;
+    for (const auto& H : homographies_) {
+      const auto e = estimateFocalFromRotation(H, width_, height_);
+      if (e.observable) fs.push_back(e.focal_px);
+    }
+    const double fm = median(fs);
+    int coherent = 0;
+    for (const double v : fs) coherent += std::abs(v / fm - 1.0) < 0.05 ? 1 : 0;
+    const bool focal_fits =
+        options_.focal_px <= 0.0 || std::abs(fm / options_.focal_px - 1.0) < 0.1;
+    if (coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits) {
+      tripodSolve();
+      return false;
+    }
+  }
+  // Candidate first frames spread over the first fifth of the clip, candidate partners at several
+  // gaps measured by parallax (median displacement 10-40 % of the width).
+  double best_score = 0.0;
+  PoseCw best_pose;
+  std::vector<int> best_tracks, tr;
+  std::vector<Eigen::Vector3d> best_X, X;
+  std::vector<Eigen::Vector2d> x1, x2;
+  const int a_span = std::max(1, n / 5);
+  const int a_step = std::max(1, a_span / 6);
+  for (int a = 0; a < n && a <= a_span; a += a_step) {
+    const double targets[] = {0.04, 0.08, 0.14, 0.24};
+    int t = 0;
+    for (int b = a + 1; b < n && t < 4; ++b) {
+      const int c = commonTracks(a, b, &x1, &x2);
+      if (c < 30) break;
+      if (displacement(x1, x2) < targets[t] * width_) continue;
+      ++t;
+      double score = 0.0;
+      PoseCw pose;
+      if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
+        best_score = score;
+        best_pose = pose;
+        best_tracks = tr;
+        best_X = X;
+        init_a_ = a;
+        init_b_ = b;
+      }
+    }
+  }
+  if (best_score <= 0.0) {
+    status_ = motion_ == "rotation-or-plane" ? Status::kPlanarScene : Status::kInitFailed;
+    message_ = status_ == Status::kPlanarScene
+                   ? "the frames are related by homographies (a single plane without a given "
+                     "focal, or no translation): no 3D reconstruction"
+                   : "no pair of frames gave a valid two-view reconstruction";
+    return false;
+  }
+  motion_ = "general";
+  auto& fa = frames_[static_cast<std::size_t>(init_a_)];
+  auto& fb = frames_[static_cast<std::size_t>(init_b_)];
+  fa.solved = fb.solved = true;
+  fa.pose = PoseCw{};
+  fb.pose = best_pose;
+  for (std::size_t i = 0; i < best_tracks.size(); ++i) {
+    MapPoint p;
+    p.X = best_X[i];
+    p.track = best_tracks[i];
+    p.valid = true;
+    point_of_track_[static_cast<std::size_t>(p.track)] = static_cast<int>(points_.size());
+    points_.push_back(p);
+  }
+  addKeyframe(init_a_);
+  addKeyframe(init_b_);
+  adjust(true);
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stage 3: every frame by resection (paper §5.4), keyframes, new points, windowed adjustment.
+
+bool Solver::registerFrame(int f) {
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> x;
+  for (const auto& o : tracks_.frame(f)) {
+    const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+    if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
+    X.push_back(points_[static_cast<std::size_t>(p)].X);
+    x.push_back(normalized(o));
+  }
+  if (X.size() < 12) return false;
+  PnpRansac pnp(static_cast<int>(X.size()));
+  PnpOptions po;
+  po.focal_px = f_;
+  po.ransac.threshold = options_.reproj_threshold_px;
+  po.ransac.seed = options_.seed + static_cast<uint64_t>(f);
+  po.refine_options.huber_px = options_.huber_px;
+  PnpResult r;
+  if (pnp.estimate(X, x, po, r) != PnpRansac::Status::kOk) return false;
+  if (r.inliers < 12 || r.inliers * 2 < static_cast<int>(X.size())) return false;
+  auto& fr = frames_[static_cast<std::size_t>(f)];
+  fr.solved = true;
+  fr.pose = r.pose;
+  fr.inliers = r.inliers;
+  fr.rms_px = r.rms_px;
+  return true;
+}
+
+bool Solver::shouldBeKeyframe(int f) const {
+  if (keyframes_.empty()) return true;
+  // The nearest keyframe in time (the pass may run backwards).
+  int kf = keyframes_.front();
+  for (const int k : keyframes_)
+    if (std::abs(k - f) < std::abs(kf - f)) kf = k;
+  if (std::abs(f - kf) >= options_.keyframe_max_gap) return true;
+  const Eigen::Vector3d c1 = frames_[static_cast<std::size_t>(f)].pose.centre();
+  const Eigen::Vector3d c0 = frames_[static_cast<std::size_t>(kf)].pose.centre();
+  std::vector<double> angles;
+  int seen_kf = 0, seen_both = 0;
+  for (const auto& o : tracks_.frame(kf)) {
+    const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+    if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
+    ++seen_kf;
+    if (tracks_.find(o.track, f) == nullptr) continue;
+    ++seen_both;
+    const Eigen::Vector3d& X = points_[static_cast<std::size_t>(p)].X;
+    const double c = (X - c0).normalized().dot((X - c1).normalized());
+    angles.push_back(std::acos(std::clamp(c, -1.0, 1.0)) * kRadToDeg);
+  }
+  if (seen_both * 10 < seen_kf * 6) return true;  // the map is being lost: add points now
+  return median(angles) >= options_.keyframe_parallax_deg;
+}
+
+void Solver::addKeyframe(int f) {
+  frames_[static_cast<std::size_t>(f)].keyframe = true;
+  keyframes_.push_back(f);
+}
+
+int Solver::triangulateNewTracks(int f) {
+  TriangulationOptions to;
+  to.focal_px = f_;
+  to.min_parallax_deg = options_.min_point_parallax_deg;
+  to.max_reproj_px = options_.reproj_threshold_px;
+  std::vector<PoseCw> poses;
+  std::vector<Eigen::Vector2d> obs;
+  int added = 0;
+  for (const auto& o : tracks_.frame(f)) {
+    if (point_of_track_[static_cast<std::size_t>(o.track)] >= 0) continue;
+    // Solved frames of the track, subsampled evenly (the extremes carry the parallax).
+    const auto idx = tracks_.track(o.track);
+    std::vector<int> solved;
+    for (const int i : idx) {
+      const auto& ob = tracks_.observations()[static_cast<std::size_t>(i)];
+      if (frames_[static_cast<std::size_t>(ob.frame)].solved) solved.push_back(i);
+    }
+    if (solved.size() < 2) continue;
+    poses.clear();
+    obs.clear();
+    const std::size_t m =
+        std::min<std::size_t>(solved.size(), static_cast<std::size_t>(options_.max_track_views));
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t pick = m == 1 ? 0 : k * (solved.size() - 1) / (m - 1);
+      const auto& ob = tracks_.observations()[static_cast<std::size_t>(solved[pick])];
+      poses.push_back(frames_[static_cast<std::size_t>(ob.frame)].pose);
+      obs.push_back(normalized(ob));
+    }
+    const auto t = triangulatePoint(poses, obs, to);
+    if (t.status != TriangulationStatus::kOk) continue;
+    MapPoint p;
+    p.X = t.X;
+    p.track = o.track;
+    p.valid = true;
+    point_of_track_[static_cast<std::size_t>(o.track)] = static_cast<int>(points_.size());
+    points_.push_back(p);
+    ++added;
+  }
+  return added;
+}
+
+void Solver::adjust(bool global) {
+  // Cameras: keyframes (the window, or all), plus fixed keyframes that see the window's points.
+  std::vector<int> free_kf;
+  if (global) {
+    free_kf = keyframes_;
+  } else {
+    std::vector<int> sorted = keyframes_;
+    const std::size_t w =
+        std::min<std::size_t>(sorted.size(), static_cast<std::size_t>(options_.ba_window));
+    free_kf.assign(keyframes_.end() - static_cast<std::ptrdiff_t>(w), keyframes_.end());
+  }
+  std::vector<int> cam_of_frame(frames_.size(), -1);
+  std::vector<BaCamera> cams;
+  std::vector<uint8_t> cam_fixed;
+  std::vector<int> cam_frame;
+  for (const int f : free_kf) {
+    cam_of_frame[static_cast<std::size_t>(f)] = static_cast<int>(cams.size());
+    cams.push_back(toBa(frames_[static_cast<std::size_t>(f)].pose));
+    cam_fixed.push_back(0);
+    cam_frame.push_back(f);
+  }
+  // Points seen by the free cameras.
+  std::vector<int> point_slot(points_.size(), -1);
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<int> pt_index;
+  for (const int f : free_kf) {
+    for (const auto& o : tracks_.frame(f)) {
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      if (p < 0 || !points_[static_cast<std::size_t>(p)].valid ||
+          point_slot[static_cast<std::size_t>(p)] >= 0)
+        continue;
+      point_slot[static_cast<std::size_t>(p)] = static_cast<int>(pts.size());
+      pts.push_back(points_[static_cast<std::size_t>(p)].X);
+      pt_index.push_back(p);
+    }
+  }
+  // Observations in every keyframe (fixed keyframes join as fixed cameras).
+  std::vector<BaObservation> obs;
+  for (const int f : keyframes_) {
+    for (const auto& o : tracks_.frame(f)) {
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
+      int c = cam_of_frame[static_cast<std::size_t>(f)];
+      if (c < 0) {
+        c = static_cast<int>(cams.size());
+        cam_of_frame[static_cast<std::size_t>(f)] = c;
+        cams.push_back(toBa(frames_[static_cast<std::size_t>(f)].pose));
+        cam_fixed.push_back(1);
+        cam_frame.push_back(f);
+      }
+      // Skip observations the current estimate calls outliers (far beyond the threshold).
+      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
+          points_[static_cast<std::size_t>(p)].X);
+      if (!(pc.z() > 0.0)) continue;
+      const Eigen::Vector2d e = (pc.hnormalized() - normalized(o)) * f_;
+      if (e.norm() > 4.0 * options_.reproj_threshold_px) continue;
+      obs.push_back({c, point_slot[static_cast<std::size_t>(p)], Eigen::Vector2d(o.x, o.y)});
+    }
+  }
+  // Gauge: the oldest keyframe fixed; with all free (global), fix the initial pair's first frame.
+  bool any_fixed = false;
+  for (const auto v : cam_fixed) any_fixed = any_fixed || v != 0;
+  if (!any_fixed && !cams.empty()) {
+    int c0 = 0;
+    for (std::size_t c = 0; c < cam_frame.size(); ++c)
+      if (cam_frame[c] == init_a_) c0 = static_cast<int>(c);
+    cam_fixed[static_cast<std::size_t>(c0)] = 1;
+  }
+  if (obs.size() < 20) return;
+  BundleAdjuster ba(static_cast<int>(cams.size()), static_cast<int>(pts.size()),
+                    static_cast<int>(obs.size()));
+  BundleAdjustmentOptions bo;
+  bo.huber_px = options_.huber_px;
+  bo.max_iterations = global ? 30 : 8;
+  bo.refine_focal = global && ((focal_source_ == "self-calibrated") ||
+                               (focal_source_ == "given" && options_.refine_given_focal));
+  bo.refine_distortion = global ? options_.refine_distortion : 0;
+  BaIntrinsics k{f_, 1.0, cx_, cy_, k1_, k2_};
+  ba.solve(cams, cam_fixed, pts, {}, obs, k, bo);
+  if (!std::isfinite(k.f) || k.f <= 0.0) return;
+  f_ = k.f;
+  k1_ = k.k1;
+  k2_ = k.k2;
+  for (std::size_t c = 0; c < cams.size(); ++c)
+    if (!cam_fixed[c]) frames_[static_cast<std::size_t>(cam_frame[c])].pose = fromBa(cams[c]);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (pts[i].allFinite()) points_[static_cast<std::size_t>(pt_index[i])].X = pts[i];
+  }
+}
+
+bool Solver::registerFrames() {
+  if (tripod_) return true;
+  const int n = tracks_.frameCount();
+  auto step = [&](int f) {
+    if (frames_[static_cast<std::size_t>(f)].solved) return;
+    if (!registerFrame(f)) return;
+    if (shouldBeKeyframe(f)) {
+      addKeyframe(f);
+      triangulateNewTracks(f);
+      adjust(false);
+    }
+  };
+  // Forward from the initial pair, then backward from it.
+  for (int f = init_a_ + 1; f < n; ++f) {
+    if (f == init_b_) {
+      triangulateNewTracks(f);
+      continue;
+    }
+    step(f);
+  }
+  for (int f = init_a_ - 1; f >= 0; --f) step(f);
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stage 4: global adjustment, then every frame on the final map.
+
+bool Solver::finalize() {
+  if (tripod_) return true;
+  adjust(true);
+  if (options_.refine_distortion > 0) adjust(true);  // distortion changes the normalized points
+  // Every frame (keyframes included) re-resected on the final points: PnP from scratch when the
+  // refined pose would not fit (recovers frames missed while the map was young).
+  for (int f = 0; f < tracks_.frameCount(); ++f) {
+    auto& fr = frames_[static_cast<std::size_t>(f)];
+    if (fr.keyframe) continue;
+    const bool was = fr.solved;
+    const PoseCw before = fr.pose;
+    fr.solved = false;
+    if (!registerFrame(f) && was) {
+      fr.solved = true;
+      fr.pose = before;
+    }
+  }
+  computeErrors();
+  return solvedFrames() > 0;
+}
+
+void Solver::computeErrors() {
+  for (auto& p : points_) {
+    p.observations = 0;
+    p.reproj_px = 0.0;
+  }
+  for (int f = 0; f < tracks_.frameCount(); ++f) {
+    auto& fr = frames_[static_cast<std::size_t>(f)];
+    if (!fr.solved) continue;
+    double sum = 0.0;
+    int count = 0;
+    for (const auto& o : tracks_.frame(f)) {
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
+      auto& mp = points_[static_cast<std::size_t>(p)];
+      const Eigen::Vector3d pc = fr.pose.toCamera(mp.X);
+      if (!(pc.z() > 0.0)) continue;
+      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      if (e > options_.reproj_threshold_px) continue;
+      sum += e * e;
+      ++count;
+      mp.reproj_px += e * e;
+      ++mp.observations;
+    }
+    fr.inliers = count;
+    fr.rms_px = count > 0 ? std::sqrt(sum / count) : 0.0;
+  }
+  for (auto& p : points_)
+    p.reproj_px = p.observations > 0 ? std::sqrt(p.reproj_px / p.observations) : 0.0;
+}
+
+void Solver::reprojectionStats(double& mean_px, double& median_px) const {
+  std::vector<double> e;
+  for (int f = 0; f < tracks_.frameCount(); ++f) {
+    const auto& fr = frames_[static_cast<std::size_t>(f)];
+    if (!fr.solved) continue;
+    for (const auto& o : tracks_.frame(f)) {
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
+      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
+      if (!(pc.z() > 0.0)) continue;
+      const double v = (pc.hnormalized() - normalized(o)).norm() * f_;
+      if (v <= options_.reproj_threshold_px) e.push_back(v);
+    }
+  }
+  mean_px =
+      e.empty() ? 0.0 : std::accumulate(e.begin(), e.end(), 0.0) / static_cast<double>(e.size());
+  median_px = median(e);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tripod solve: a rotating camera (Hartley 1997): focal from the rotation homographies, each
+// frame's rotation from its homography to a reference frame, every centre at the origin.
+
+bool Solver::tripodSolve() {
+  const int n = tracks_.frameCount();
+  if (options_.focal_px > 0.0) {
+    f_ = options_.focal_px;
+  } else {
+    std::vector<double> fs;
+    for (const auto& H : homographies_) {
+      const auto e = estimateFocalFromRotation(H, width_, height_);
+      if (e.observable) fs.push_back(e.focal_px);
+    }
+    if (fs.empty()) return false;
+    f_ = median(fs);
+    focal_source_ = "self-calibrated";
+    focal_observable_ = true;
+  }
+  Eigen::Matrix3d K;
+  K << f_, 0, cx_, 0, f_, cy_, 0, 0, 1;
+  const Eigen::Matrix3d Kinv = K.inverse();
+  int max_obs = 0;
+  for (int f = 0; f < n; ++f)
+    max_obs = std::max(max_obs, static_cast<int>(tracks_.frame(f).size()));
+  HomographyRansac hr(std::max(8, max_obs));
+  std::vector<Eigen::Vector2d> x1, x2;
+  int ref = 0;
+  Eigen::Matrix3d R_ref = Eigen::Matrix3d::Identity();  // R_cw of the reference frame
+  frames_[0].solved = tracks_.frame(0).size() >= 8;
+  int solved = 0;
+  for (int f = 0; f < n; ++f) {
+    if (f == ref) {
+      frames_[static_cast<std::size_t>(f)].solved = true;
+      frames_[static_cast<std::size_t>(f)].pose.R_cw = R_ref;
+      ++solved;
+      continue;
+    }
+    if (commonTracks(ref, f, &x1, &x2) < 20) {
+      // Re-anchor on the previous solved frame.
+      if (f - 1 != ref && frames_[static_cast<std::size_t>(f - 1)].solved) {
+        ref = f - 1;
+        R_ref = frames_[static_cast<std::size_t>(ref)].pose.R_cw;
+        commonTracks(ref, f, &x1, &x2);
+      }
+      if (x1.size() < 8) continue;
+    }
+    HomographyResult h;
+    if (hr.estimate(x1, x2, {}, h) != HomographyRansac::Status::kOk) continue;
+    // x_f ~ K R_f R_ref^T K^-1 x_ref.
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(Kinv * h.H * K,
+                                          Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
+    if (R.determinant() < 0) R = -R;
+    auto& fr = frames_[static_cast<std::size_t>(f)];
+    fr.solved = true;
+    fr.pose.R_cw = R * R_ref;
+    fr.pose.t_cw.setZero();
+    fr.rms_px = h.rms_transfer_px;
+    fr.inliers = h.inliers;
+    ++solved;
+  }
+  tripod_ = true;
+  motion_ = "rotation-only";
+  status_ = Status::kRotationOnly;
+  message_ = "the camera only rotates (tripod): rotation and focal solved, depth unknown";
+  return solved > 0;
+}
+
+}  // namespace epitrack

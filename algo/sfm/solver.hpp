@@ -1,0 +1,139 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/geometry/focal_self_calibration.hpp"
+#include "algo/geometry/pose.hpp"
+#include "algo/sfm/track_table.hpp"
+
+namespace epitrack {
+
+struct SolverOptions {
+  double focal_px = 0.0;      ///< > 0: the focal is given (and kept unless refine_given_focal)
+  double k1 = 0.0, k2 = 0.0;  ///< given radial distortion
+  int refine_distortion = 0;  ///< 0 none, 1 k1, 2 k1 and k2 (estimated in the final adjustment)
+  bool refine_given_focal = false;
+  double fallback_focal_widths =
+      1.2;  ///< focal when it is neither given nor observable (x max(w, h))
+  double keyframe_parallax_deg =
+      2.0;                    ///< new keyframe when the median parallax to the last reaches this
+  int keyframe_max_gap = 40;  ///< or after this many frames
+  double min_point_parallax_deg = 1.0;  ///< triangulation: smallest angle between the extreme rays
+  double reproj_threshold_px = 2.5;     ///< PnP inlier / triangulation acceptance threshold
+  int ba_window = 8;                    ///< keyframes refined while solving (older ones fixed)
+  double huber_px = 1.0;
+  int max_track_views = 12;  ///< views used to triangulate a new track
+  uint64_t seed = 1;
+};
+
+/// One frame of the solve.
+struct SolvedFrame {
+  bool solved = false;
+  bool keyframe = false;
+  PoseCw pose;
+  int inliers = 0;
+  double rms_px = 0.0;
+};
+
+struct MapPoint {
+  Eigen::Vector3d X = Eigen::Vector3d::Zero();
+  int track = -1;
+  bool valid = false;
+  int keyframe_observations = 0;
+  double reproj_px = 0.0;  ///< RMS over its inlier observations in solved frames
+  int observations = 0;
+};
+
+struct PairFocal {
+  int frame_a = 0, frame_b = 0;
+  double focal_px = 0.0;
+  bool observable = false;
+  bool coherent = false;
+  bool homography = false;  ///< the pair fitted a homography better (rotation, plane, no motion)
+};
+
+/// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
+/// `calibrate` (focal given or self-calibrated over many pairs, paper §5.2), `initialize` (the
+/// best-scoring initial pair among several candidates: F, E, cheirality, triangulation, §5.3),
+/// `registerFrames` (every frame by PnP-RANSAC on the map, §5.4, keyframes by measured parallax,
+/// new tracks triangulated at keyframes, windowed bundle adjustment), `finalize` (global bundle
+/// adjustment over keyframes with the focal and distortion when requested, then every frame's
+/// pose refined on the final map). A pure rotation ends in a tripod solve (rotation and focal;
+/// depth unknown). Each stage returns false when the solve cannot go on; `status()` says why.
+class Solver {
+ public:
+  enum class Status {
+    kOk,
+    kTooFewFeatures,  ///< not enough tracks to relate frames
+    kNoMotion,        ///< the camera does not move enough to see parallax
+    kRotationOnly,    ///< tripod: rotation and focal solved, depth unknown
+    kPlanarScene,     ///< a single plane and the focal unknown: F is undefined
+    kInitFailed,      ///< no candidate pair gave a valid two-view reconstruction
+  };
+
+  Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options);
+
+  bool calibrate();
+  bool initialize();
+  bool registerFrames();
+  bool finalize();
+
+  [[nodiscard]] Status status() const { return status_; }
+  [[nodiscard]] const std::string& message() const { return message_; }
+  [[nodiscard]] const std::vector<SolvedFrame>& frames() const { return frames_; }
+  [[nodiscard]] const std::vector<MapPoint>& points() const { return points_; }
+  [[nodiscard]] double focal() const { return f_; }
+  [[nodiscard]] double k1() const { return k1_; }
+  [[nodiscard]] double k2() const { return k2_; }
+  [[nodiscard]] double cx() const { return cx_; }
+  [[nodiscard]] double cy() const { return cy_; }
+  [[nodiscard]] const std::string& focalSource() const { return focal_source_; }
+  [[nodiscard]] bool focalObservable() const { return focal_observable_; }
+  [[nodiscard]] const std::string& motion() const { return motion_; }
+  [[nodiscard]] const std::vector<PairFocal>& pairFocals() const { return pair_focals_; }
+  [[nodiscard]] int solvedFrames() const;
+  /// Mean and median reprojection error over every inlier observation of a solved frame.
+  void reprojectionStats(double& mean_px, double& median_px) const;
+  [[nodiscard]] int initialPairA() const { return init_a_; }
+  [[nodiscard]] int initialPairB() const { return init_b_; }
+
+ private:
+  [[nodiscard]] Eigen::Vector2d normalized(const TrackObservation& o) const;
+  bool tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<int>& tracks,
+               std::vector<Eigen::Vector3d>& X) const;
+  bool registerFrame(int f);
+  bool shouldBeKeyframe(int f) const;
+  void addKeyframe(int f);
+  int triangulateNewTracks(int f);
+  void adjust(bool global);
+  bool tripodSolve();
+  void computeErrors();
+  int commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
+                   std::vector<Eigen::Vector2d>* x2) const;
+
+  const TrackTable& tracks_;
+  int width_, height_;
+  SolverOptions options_;
+  double f_ = 0.0, cx_ = 0.0, cy_ = 0.0, k1_ = 0.0, k2_ = 0.0;
+  std::string focal_source_ = "given";
+  bool focal_observable_ = true;
+  std::string motion_ = "general";
+  Status status_ = Status::kOk;
+  std::string message_;
+  std::vector<SolvedFrame> frames_;
+  std::vector<MapPoint> points_;
+  std::vector<int> point_of_track_;  // -1: none
+  std::vector<int> keyframes_;       // in insertion order
+  std::vector<PairFocal> pair_focals_;
+  std::vector<Eigen::Matrix3d> homographies_;  // of the calibration pairs (tripod solve)
+  int init_a_ = -1, init_b_ = -1;
+  bool tripod_ = false;
+};
+
+const char* toString(Solver::Status s);
+
+}  // namespace epitrack

@@ -1,0 +1,34 @@
+// camera.chan: Nuke channel file for a Camera node (Camera > File > Import chan file).
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
+
+#include "tools/export/export_geometry.hpp"
+#include "tools/export/output_writers.hpp"
+
+namespace epitrack::io {
+
+std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& options) {
+  constexpr double kDegrees = 180.0 / std::numbers::pi;
+  const CameraIntrinsics& k = rec.intrinsics;
+  // Vertical field of view over the full image height (pixel edges), in degrees.
+  const double vfov_deg =
+      (k.fy > 0.0 && k.height > 0) ? 2.0 * std::atan(0.5 * k.height / k.fy) * kDegrees : 0.0;
+  const Eigen::Matrix3d W = ourWorldToNukeWorld();
+  std::string out;
+  char buf[256];
+  for (const SolvedCamera& c : rec.cameras) {
+    if (!c.solved || !c.R_wc.allFinite() || !c.p_wc.allFinite()) continue;
+    const Eigen::Vector3d t = W * c.p_wc;
+    const Eigen::Vector3d r = nukeZxyFromRotation(W * glCameraRotation(c.R_wc)) * kDegrees;
+    std::snprintf(buf, sizeof(buf), "%lld %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n",
+                  static_cast<long long>(c.frame + options.nuke_frame_offset), t.x(), t.y(), t.z(),
+                  r.x(), r.y(), r.z(), vfov_deg);
+    out += buf;
+  }
+  return out;
+}
+
+}  // namespace epitrack::io

@@ -117,7 +117,7 @@ TEST_CASE("plane origin on an epitrack-synth orbit puts the floor at z = 0", "[e
   CHECK(summary.find("\"up\": \"+z\"") != std::string::npos);
 }
 
-TEST_CASE("--origin parsing", "[export][scene]") {
+TEST_CASE("origin option parsing (--origin)", "[export][scene]") {
   SceneFrameOptions o;
   std::string error;
   CHECK(parseOriginOption("first-camera", o, error));

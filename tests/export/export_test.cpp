@@ -298,6 +298,29 @@ TEST_CASE("camera.chan angles give back R_wc in Nuke's conventions", "[export]")
   CHECK(lines == static_cast<std::size_t>(solvedCount(rec)));
 }
 
+TEST_CASE("camera.chan angles are continuous over a full turn", "[export]") {
+  const Reconstruction rec = et::makeReconstruction(60, 0);  // 0.15 rad per frame: 8.9 rad
+  std::istringstream in(formatNukeChan(rec, ExportOptions{}));
+  const Eigen::Matrix3d W = ourWorldToNukeWorld();
+  constexpr double kRad = std::numbers::pi / 180.0;
+  Eigen::Vector3d previous = Eigen::Vector3d::Zero();
+  double largest_step = 0.0;
+  double worst_deg = 0.0;
+  for (const auto& c : rec.cameras) {
+    double f = 0, tx = 0, ty = 0, tz = 0, fov = 0;
+    Eigen::Vector3d r;
+    REQUIRE(static_cast<bool>(in >> f >> tx >> ty >> tz >> r.x() >> r.y() >> r.z() >> fov));
+    if (c.frame > 0) largest_step = std::max(largest_step, (r - previous).cwiseAbs().maxCoeff());
+    previous = r;
+    const Eigen::Matrix3d R_nuke = rotationFromNukeZxy(r.x() * kRad, r.y() * kRad, r.z() * kRad);
+    worst_deg =
+        std::max(worst_deg, rotationAngleDeg(W.transpose() * R_nuke * cameraToGlAxes(), c.R_wc));
+  }
+  CHECK(largest_step < 15.0);             // about 8.6 degrees of yaw per frame
+  CHECK(std::abs(previous.y()) > 360.0);  // kept winding instead of wrapping
+  CHECK(worst_deg < 1e-6);
+}
+
 TEST_CASE("Nuke ZXY angles round-trip including the gimbal lock", "[export]") {
   constexpr double kPi = std::numbers::pi;
   for (int i = 0; i < 200; ++i) {

@@ -19,10 +19,19 @@ std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& optio
   const Eigen::Matrix3d W = ourWorldToNukeWorld();
   std::string out;
   char buf[256];
+  Eigen::Vector3d previous = Eigen::Vector3d::Zero();
+  bool have_previous = false;
   for (const SolvedCamera& c : rec.cameras) {
     if (!c.solved || !c.R_wc.allFinite() || !c.p_wc.allFinite()) continue;
     const Eigen::Vector3d t = W * c.p_wc;
-    const Eigen::Vector3d r = nukeZxyFromRotation(W * glCameraRotation(c.R_wc)) * kDegrees;
+    Eigen::Vector3d r = nukeZxyFromRotation(W * glCameraRotation(c.R_wc)) * kDegrees;
+    // Unwrap each angle to within 180 degrees of the previous frame's, so that Nuke's
+    // interpolation between frames (motion blur, retiming) never spins the camera around.
+    if (have_previous) {
+      for (int a = 0; a < 3; ++a) r[a] -= 360.0 * std::round((r[a] - previous[a]) / 360.0);
+    }
+    previous = r;
+    have_previous = true;
     std::snprintf(buf, sizeof(buf), "%lld %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n",
                   static_cast<long long>(c.frame + options.nuke_frame_offset), t.x(), t.y(), t.z(),
                   r.x(), r.y(), r.z(), vfov_deg);

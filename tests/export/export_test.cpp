@@ -236,6 +236,30 @@ TEST_CASE("COLMAP text model parses back, consistent and reprojecting", "[export
   }
 }
 
+TEST_CASE("COLMAP export keeps tracks of length >= 2 and one observation per image", "[export]") {
+  Reconstruction rec = et::makeReconstruction(6, 0);
+  ScenePoint lonely;  // seen in one frame only: COLMAP's bundle adjuster would assert
+  lonely.id = 1000;
+  lonely.X = Eigen::Vector3d(0.1, 0.2, 0.3);
+  rec.points.push_back(lonely);
+  rec.observations.push_back({2, 1000, 100.0, 100.0, 0.0});
+  rec.observations.push_back({1, 1000, 100.0, 100.0, 0.0});          // frame 1 below
+  rec.observations.push_back({3, rec.points[0].id, 5.0, 5.0, 0.0});  // repeated in frame 3
+  rec.cameras[1].solved = false;
+  ColmapModel model;
+  std::string error;
+  REQUIRE(parseColmapImages(formatColmapImages(rec, ExportOptions{}), model.images, error));
+  REQUIRE(parseColmapPoints3D(formatColmapPoints3D(rec), model.points, error));
+  REQUIRE(parseColmapCameras(formatColmapCameras(rec), model.cameras, error));
+  REQUIRE(checkColmapConsistency(model, error));
+  CHECK(model.points.size() == rec.points.size() - 1);
+  for (const auto& p : model.points) {
+    CHECK(p.id != 1000);
+    CHECK(p.track.size() == 5);
+  }
+  for (const auto& im : model.images) CHECK(im.points.size() == rec.points.size() - 1);
+}
+
 TEST_CASE("COLMAP uses OPENCV for non-square pixels with distortion", "[export]") {
   Reconstruction rec = et::makeReconstruction(3, 0, 0.05, 0.0);
   rec.intrinsics.fy = 510.0;

@@ -3,8 +3,10 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -39,30 +41,47 @@ std::string num(double v) {
   return buf;
 }
 
-/// The 2D points of each exported image, in the order written on its POINTS2D line: only
-/// observations of existing finite points in solved frames. Shared by images.txt and points3D.txt
-/// so that POINT2D_IDX references agree.
+/// The 2D points of each exported image, in the order written on its POINTS2D line, and the
+/// points written to points3D.txt. Kept: observations of finite points in solved frames, one per
+/// (frame, point) pair (the first), of points seen in at least two exported images: COLMAP's
+/// bundle adjuster asserts tracks of length >= 2. Shared by images.txt and points3D.txt so that
+/// POINT2D_IDX references agree.
 struct ColmapTracks {
   std::map<int64_t, std::vector<const PointObservation*>> per_frame;  // frame -> observations
   std::unordered_map<int64_t, std::vector<std::pair<int64_t, int>>> per_point;  // id -> (img, idx)
 };
 
+constexpr std::size_t kMinColmapTrackLength = 2;
+
 ColmapTracks buildTracks(const Reconstruction& rec) {
-  ColmapTracks t;
-  std::unordered_map<int64_t, bool> solved_frames;
+  std::unordered_set<int64_t> solved_frames;
   for (const SolvedCamera& c : rec.cameras) {
-    if (usableCamera(c)) solved_frames[c.frame] = true;
+    if (usableCamera(c)) solved_frames.insert(c.frame);
   }
-  std::unordered_map<int64_t, bool> points;
+  std::unordered_map<int64_t, std::size_t> track_length;
   for (const ScenePoint& p : rec.points) {
-    if (p.X.allFinite() && p.id >= 0) points[p.id] = true;
+    if (p.X.allFinite() && p.id >= 0) track_length[p.id] = 0;
   }
+  std::vector<const PointObservation*> kept;
+  std::set<std::pair<int64_t, int64_t>> seen;  // (frame, point)
   for (const PointObservation& o : rec.observations) {
-    if (solved_frames.count(o.frame) == 0 || points.count(o.point_id) == 0) continue;
-    if (!std::isfinite(o.x) || !std::isfinite(o.y)) continue;
-    auto& list = t.per_frame[o.frame];
-    t.per_point[o.point_id].emplace_back(o.frame + 1, static_cast<int>(list.size()));
-    list.push_back(&o);
+    if (solved_frames.count(o.frame) == 0) continue;
+    const auto len = track_length.find(o.point_id);
+    if (len == track_length.end() || !std::isfinite(o.x) || !std::isfinite(o.y)) continue;
+    if (!seen.emplace(o.frame, o.point_id).second) continue;
+    len->second += 1;
+    kept.push_back(&o);
+  }
+  ColmapTracks t;
+  for (const auto& [id, len] : track_length) {
+    if (len >= kMinColmapTrackLength) t.per_point[id];  // listed even before its entries
+  }
+  for (const PointObservation* o : kept) {
+    auto track = t.per_point.find(o->point_id);
+    if (track == t.per_point.end()) continue;
+    auto& list = t.per_frame[o->frame];
+    track->second.emplace_back(o->frame + 1, static_cast<int>(list.size()));
+    list.push_back(o);
   }
   return t;
 }
@@ -151,11 +170,12 @@ std::string formatColmapPoints3D(const Reconstruction& rec) {
   const ColmapTracks tracks = buildTracks(rec);
   std::size_t count = 0;
   std::size_t track_total = 0;
+  std::unordered_set<int64_t> listed;  // a repeated id is written once
   for (const ScenePoint& p : rec.points) {
-    if (!p.X.allFinite() || p.id < 0) continue;
-    ++count;
     const auto it = tracks.per_point.find(p.id);
-    if (it != tracks.per_point.end()) track_total += it->second.size();
+    if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
+    ++count;
+    track_total += it->second.size();
   }
   std::string out =
       "# 3D point list with one line of data per point:\n"
@@ -164,20 +184,19 @@ std::string formatColmapPoints3D(const Reconstruction& rec) {
   std::snprintf(buf, sizeof(buf), "# Number of points: %zu, mean track length: %.6g\n", count,
                 count > 0 ? static_cast<double>(track_total) / static_cast<double>(count) : 0.0);
   out += buf;
+  listed.clear();
   for (const ScenePoint& p : rec.points) {
-    if (!p.X.allFinite() || p.id < 0) continue;
+    const auto it = tracks.per_point.find(p.id);
+    if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
     const double err = std::isfinite(p.reproj_px) ? p.reproj_px : 0.0;
     std::snprintf(buf, sizeof(buf), "%lld %.12g %.12g %.12g %u %u %u %.6g",
                   static_cast<long long>(p.id), p.X.x(), p.X.y(), p.X.z(),
                   static_cast<unsigned>(p.gray), static_cast<unsigned>(p.gray),
                   static_cast<unsigned>(p.gray), err);
     out += buf;
-    const auto it = tracks.per_point.find(p.id);
-    if (it != tracks.per_point.end()) {
-      for (const auto& [image_id, idx] : it->second) {
-        std::snprintf(buf, sizeof(buf), " %lld %d", static_cast<long long>(image_id), idx);
-        out += buf;
-      }
+    for (const auto& [image_id, idx] : it->second) {
+      std::snprintf(buf, sizeof(buf), " %lld %d", static_cast<long long>(image_id), idx);
+      out += buf;
     }
     out += "\n";
   }

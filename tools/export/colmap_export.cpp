@@ -145,7 +145,7 @@ std::string formatColmapImages(const Reconstruction& rec, const ExportOptions& o
     q.normalize();
     if (q.w() < 0.0) q.coeffs() = -q.coeffs();
     std::snprintf(buf, sizeof(buf), "%lld %.12g %.12g %.12g %.12g %.12g %.12g %.12g 1 ",
-                  static_cast<long long>(c.frame + 1), q.w(), q.x(), q.y(), q.z(), t_cw.x(),
+                  static_cast<long long>(c.frame) + 1, q.w(), q.x(), q.y(), q.z(), t_cw.x(),
                   t_cw.y(), t_cw.z());
     out += buf;
     out += imageName(rec, c.frame, options);

@@ -33,7 +33,7 @@ std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& optio
     previous = r;
     have_previous = true;
     std::snprintf(buf, sizeof(buf), "%lld %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n",
-                  static_cast<long long>(c.frame + options.nuke_frame_offset), t.x(), t.y(), t.z(),
+                  static_cast<long long>(c.frame) + options.nuke_frame_offset, t.x(), t.y(), t.z(),
                   r.x(), r.y(), r.z(), vfov_deg);
     out += buf;
   }

@@ -45,7 +45,7 @@ SceneFrame applySceneFrame(Reconstruction& rec, const SceneFrameOptions& options
     points.push_back(p.X);
     ids.push_back(p.id);
   }
-  const SceneFrame frame = computeSceneFrame(points, ids, poses, options);
+  SceneFrame frame = computeSceneFrame(points, ids, poses, options);
   if (frame.status == SceneFrameStatus::kInvalidInput) {
     rec.origin_note = describe(frame.status);
     return frame;

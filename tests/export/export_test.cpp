@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -367,4 +368,31 @@ TEST_CASE("blender_camera.py compiles with python3", "[export]") {
   std::string error;
   REQUIRE(writeAllOutputs(rec, dir.path(), error));
   CHECK(et::run("python3 -m py_compile '" + dir.file("blender_camera.py") + "'") == 0);
+}
+
+TEST_CASE("writeAllOutputs of a 340-frame solve is fast", "[export][speed]") {
+  // 340 frames x 25 points + 3000 extra points each seen in 40 frames: ~130k observations.
+  Reconstruction rec = et::makeReconstruction(340, 0);
+  for (int i = 0; i < 3000; ++i) {
+    ScenePoint p;
+    p.id = 10000 + i;
+    p.X = Eigen::Vector3d(0.001 * i, 0.5, 0.2);
+    rec.points.push_back(p);
+    for (int f = 0; f < 40; ++f) {
+      rec.observations.push_back({(i + f) % 340, p.id, 100.0 + f, 50.0 + 0.01 * i, 0.3});
+    }
+  }
+  et::TempDir dir("export-speed");
+  std::string error;
+  const auto start = std::chrono::steady_clock::now();
+  REQUIRE(writeAllOutputs(rec, dir.path(), error));
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("writeAllOutputs: %zu cameras, %zu points, %zu observations in %.3f s\n",
+              rec.cameras.size(), rec.points.size(), rec.observations.size(), seconds);
+  CHECK(seconds < 2.0);
+  ColmapModel model;
+  REQUIRE(readColmapModel(dir.path() + "/colmap", model, error));
+  CHECK(checkColmapConsistency(model, error));
+  CHECK(model.points.size() == rec.points.size());
 }

@@ -3,6 +3,10 @@
 #include <cstdio>
 #include <string>
 
+#include <fcntl.h>
+#include <stdlib.h>
+#include <unistd.h>
+
 #include "tools/export/progress.hpp"
 
 using epitrack::io::ProgressReporter;
@@ -97,4 +101,21 @@ TEST_CASE("progress: unknown totals and messages", "[progress]") {
   }
   CHECK(readAll(f) == "bundle adjustment: started\nbundle adjustment: done\nfocal: 612.3 px\n");
   std::fclose(f);
+}
+
+TEST_CASE("progress: kAuto picks the bar on a terminal", "[progress]") {
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+  if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0) {
+    std::printf("EPITRACK-SKIP: no pseudo-terminal available\n");
+    if (master >= 0) ::close(master);
+    return;
+  }
+  const char* name = ::ptsname(master);
+  REQUIRE(name != nullptr);
+  std::FILE* terminal = std::fopen(name, "w");
+  REQUIRE(terminal != nullptr);
+  CHECK(ProgressReporter(ProgressReporter::Mode::kAuto, terminal).mode() ==
+        ProgressReporter::Mode::kBar);
+  std::fclose(terminal);
+  ::close(master);
 }

@@ -29,6 +29,7 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   Reconstruction rec = et::makeReconstruction(12, 5);
   rec.intrinsics.cx = 330.25;  // off-centre principal point exercises the lens shift
   rec.intrinsics.cy = 231.5;
+  rec.has_timestamps = true;  // fixture: 0.04 s per frame, 25 fps
   et::TempDir dir("blender-run");
   std::string error;
   ExportOptions options;
@@ -44,7 +45,8 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   REQUIRE(in.good());
   std::string line;
   int width = 0, height = 0, percent = 0;
-  int frame_start = 0, frame_end = 0;
+  int frame_start = 0, frame_end = 0, fps = 0;
+  double fps_base = 0.0;
   std::string mode, fit;
   double sensor = 0, lens = 0, shift_x = 0, shift_y = 0, clip_end = 0;
   std::map<int, Eigen::Vector3d> locations;
@@ -58,6 +60,8 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
       f >> width >> height >> percent;
     } else if (what == "frames") {
       f >> frame_start >> frame_end;
+    } else if (what == "fps") {
+      f >> fps >> fps_base;
     } else if (what == "camera") {
       f >> mode >> fit >> sensor >> lens >> shift_x >> shift_y >> clip_end;
     } else if (what == "location") {
@@ -79,6 +83,8 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   CHECK(width == 640);
   CHECK(height == 480);
   CHECK(percent == 100);
+  CHECK(fps == 25);
+  CHECK(fps_base == Approx(1.0));
   CHECK(mode == "QUATERNION");
   CHECK(fit == "HORIZONTAL");
   CHECK(sensor == 24.0);

@@ -174,6 +174,7 @@ std::string formatSummaryJson(const Reconstruction& rec) {
     j.field("solved", c.solved);
     j.field("keyframe", c.keyframe);
     j.field("inliers", c.inliers);
+    j.field("features", c.features);
     j.field("mean_reproj_px", c.mean_reproj_px);
     j.endObject();
   }

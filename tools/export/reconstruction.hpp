@@ -4,6 +4,13 @@
 // fills a Reconstruction and tools/export writes it to every output format of ARCHITECTURE.md.
 // Plain data, no invariants beyond those documented per field; poses are T_wc (camera -> world)
 // in the camera convention of ARCHITECTURE.md (x right, y down, z forward).
+//
+// Typical use at the end of epitrack-solve:
+//   io::Reconstruction rec = ...;                        // filled by the solver
+//   io::applySceneFrame(rec, options);                   // reconstruction_scene_frame.hpp
+//   io::computeReprojectionErrors(rec);                  // reprojection_errors.hpp
+//   if (!io::writeAllOutputs(rec, out_dir, error)) ...   // output_writers.hpp
+// with io::ProgressReporter (progress.hpp) reporting the stages on stderr.
 
 #include <cstdint>
 #include <limits>
@@ -27,6 +34,7 @@ struct SolvedCamera {
   Eigen::Vector3d p_wc = Eigen::Vector3d::Zero();                    ///< camera centre in the world
   double mean_reproj_px = std::numeric_limits<double>::quiet_NaN();  ///< NaN: unknown
   int inliers = 0;        ///< observations used for this pose
+  int features = 0;       ///< 2D features tracked in this frame (for the report), 0: unknown
   bool keyframe = false;  ///< used as a keyframe by the solver
 };
 

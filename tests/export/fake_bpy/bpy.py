@@ -14,6 +14,8 @@ class _Render:
         self.resolution_percentage = 0
         self.pixel_aspect_x = 1.0
         self.pixel_aspect_y = 1.0
+        self.fps = 24
+        self.fps_base = 1.0
 
 
 class _Objects:
@@ -113,6 +115,7 @@ def _dump():
                                               r.resolution_percentage, r.pixel_aspect_x,
                                               r.pixel_aspect_y))
         out.write("frames %d %d\n" % (scene.frame_start, scene.frame_end))
+        out.write("fps %d %r\n" % (r.fps, r.fps_base))
         cam = scene.camera
         if cam is not None:
             d = cam.data

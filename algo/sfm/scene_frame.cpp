@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -97,22 +98,24 @@ struct PlaneFit {
   double median_camera_distance = 0.0;
 };
 
-/// Dominant plane by RANSAC on 3-point samples (Fischler & Bolles 1981), the largest consensus
-/// set winning (first one on ties), then two rounds of least-squares refit and re-classification.
-/// The normal is oriented so that the median signed camera distance is positive.
-PlaneFit findDominantPlane(const std::vector<Eigen::Vector3d>& points,
-                           std::span<const ScenePose> cameras, double threshold,
-                           const SceneFrameOptions& options) {
-  PlaneFit fit;
+struct PlaneCandidate {
+  Plane plane;
+  int count = 0;
+};
+
+/// RANSAC on 3-point samples (Fischler & Bolles 1981): the largest consensus set wins (the first
+/// one on ties). With `up` set, only planes whose normal makes at most acos(min_cos_up) with it
+/// are considered (the ground search).
+PlaneCandidate ransacPlane(const std::vector<Eigen::Vector3d>& points, double threshold,
+                           const SceneFrameOptions& options, const Eigen::Vector3d* up,
+                           double min_cos_up) {
+  PlaneCandidate best;
   const std::size_t n = points.size();
-  if (n < 3 || threshold <= 0.0) return fit;
   SampleGenerator rng(options.seed);
-  Plane best;
-  int best_count = 0;
   for (int it = 0; it < options.ransac_iterations; ++it) {
     const std::size_t a = rng.index(n);
-    std::size_t b = rng.index(n);
-    std::size_t c = rng.index(n);
+    const std::size_t b = rng.index(n);
+    const std::size_t c = rng.index(n);
     if (a == b || b == c || a == c) continue;
     const Eigen::Vector3d normal = (points[b] - points[a]).cross(points[c] - points[a]);
     const double norm = normal.norm();
@@ -121,18 +124,29 @@ PlaneFit findDominantPlane(const std::vector<Eigen::Vector3d>& points,
     Plane candidate;
     candidate.normal = normal / norm;
     candidate.offset = candidate.normal.dot(points[a]);
+    if (up != nullptr && std::abs(candidate.normal.dot(*up)) < min_cos_up) continue;
     int count = 0;
     for (const Eigen::Vector3d& X : points) {
       count += std::abs(candidate.signedDistance(X)) < threshold ? 1 : 0;
     }
-    if (count > best_count) {
-      best_count = count;
-      best = candidate;
+    if (count > best.count) {
+      best.count = count;
+      best.plane = candidate;
     }
   }
-  if (best_count < 3) return fit;
+  return best;
+}
+
+/// Two rounds of least-squares refit and re-classification of a RANSAC plane, the size test, the
+/// orientation (median signed camera distance positive) and the camera distance.
+PlaneFit refinePlane(const std::vector<Eigen::Vector3d>& points, std::span<const ScenePose> cameras,
+                     const PlaneCandidate& candidate, double threshold,
+                     const SceneFrameOptions& options) {
+  PlaneFit fit;
+  const std::size_t n = points.size();
+  if (candidate.count < 3) return fit;
   std::vector<uint8_t> inlier(n, 0);
-  fit.plane = best;
+  fit.plane = candidate.plane;
   fit.inliers = markInliers(points, fit.plane, threshold, inlier);
   for (int round = 0; round < 2; ++round) {
     Plane refit;
@@ -162,6 +176,41 @@ PlaneFit findDominantPlane(const std::vector<Eigen::Vector3d>& points,
   fit.median_camera_distance = medianOf(signed_distances);
   // Cameras on the plane (a wall seen edge-on, a degenerate solve) give no usable scale.
   fit.found = fit.median_camera_distance > threshold;
+  return fit;
+}
+
+/// The cameras' mean "up" direction (their image -y axis in the world), or zero when they
+/// disagree too much (|mean| < 0.5) to define one.
+Eigen::Vector3d camerasUp(std::span<const ScenePose> cameras) {
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  for (const ScenePose& c : cameras) up -= c.R_wc.col(1);
+  up /= static_cast<double>(cameras.size());
+  return up.norm() >= 0.5 ? Eigen::Vector3d(up.normalized()) : Eigen::Vector3d::Zero();
+}
+
+/// The dominant plane (largest RANSAC consensus). With options.prefer_ground, when that plane is
+/// steep relative to the cameras' mean up direction (a wall), a second RANSAC restricted to
+/// planes within options.ground_max_tilt_deg of "up" looks for a ground; it is preferred when
+/// it holds at least options.ground_min_ratio of the dominant plane's inliers.
+PlaneFit findDominantPlane(const std::vector<Eigen::Vector3d>& points,
+                           std::span<const ScenePose> cameras, double threshold,
+                           const SceneFrameOptions& options) {
+  if (points.size() < 3 || !(threshold > 0.0)) return PlaneFit{};
+  PlaneFit fit = refinePlane(points, cameras, ransacPlane(points, threshold, options, nullptr, 0.0),
+                             threshold, options);
+  if (!options.prefer_ground) return fit;
+  const Eigen::Vector3d up = camerasUp(cameras);
+  if (up.isZero()) return fit;
+  const double min_cos = std::cos(options.ground_max_tilt_deg * std::numbers::pi / 180.0);
+  if (fit.found && std::abs(fit.plane.normal.dot(up)) >= min_cos) return fit;
+  const PlaneFit ground = refinePlane(
+      points, cameras, ransacPlane(points, threshold, options, &up, min_cos), threshold, options);
+  const bool level = std::abs(ground.plane.normal.dot(up)) >= min_cos;  // still after the refit
+  if (ground.found && level &&
+      (!fit.found ||
+       static_cast<double>(ground.inliers) >= options.ground_min_ratio * fit.inliers)) {
+    return ground;
+  }
   return fit;
 }
 

@@ -6,10 +6,11 @@
 //
 // Modes
 // - plane (default): a dominant plane is fitted to the scene points by RANSAC (the ground or a
-//   table). Scene +Z is the plane normal, oriented towards the cameras (so +Z is "up" and the
-//   cameras are at z > 0, as in Blender); scene +X is the first camera's x axis (image right)
-//   projected onto the plane; +Y = Z x X. The origin is the centroid of the plane's inlier points
-//   (it lies on the least-squares plane). The scale makes the median camera-to-plane distance 1.
+//   table; a level plane is preferred to a larger wall, see SceneFrameOptions::prefer_ground).
+//   Scene +Z is the plane normal, oriented towards the cameras (so +Z is "up" and the cameras are
+//   at z > 0, as in Blender); scene +X is the first camera's x axis (image right) projected onto
+//   the plane; +Y = Z x X. The origin is the centroid of the plane's inlier points (it lies on the
+//   least-squares plane). The scale makes the median camera-to-plane distance 1.
 // - first-camera: the first camera's frame: origin at its centre, its axes (x right, y down,
 //   z forward, so "up" is -Y), and the scale makes the median depth of the points in front of it 1
 //   (if no point is in front, the distance from the first camera to the farthest camera is 1).
@@ -54,6 +55,13 @@ struct SceneFrameOptions {
   int min_plane_inliers = 12;       ///< a plane needs at least this many inliers ...
   double min_plane_fraction = 0.2;  ///< ... and this fraction of the points
   uint64_t seed = 0x5eed;           ///< RANSAC samples are deterministic for a seed
+  /// Prefer a ground to a wall: when the dominant plane is tilted more than ground_max_tilt_deg
+  /// from the cameras' mean up direction (their image -y), a level plane holding at least
+  /// ground_min_ratio of the dominant plane's inliers is used instead (the issue asks for "the
+  /// ground or a table").
+  bool prefer_ground = true;
+  double ground_max_tilt_deg = 30.0;
+  double ground_min_ratio = 0.3;
 };
 
 enum class SceneFrameStatus {

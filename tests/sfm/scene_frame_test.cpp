@@ -267,3 +267,52 @@ TEST_CASE("invalid scene frame input", "[scene_frame]") {
   CHECK(computeSceneFrame(pts, {}, scene.cameras, SceneFrameOptions{}).status ==
         SceneFrameStatus::kOk);
 }
+
+namespace {
+
+/// A room corner: `floor` points on z = 0, `wall` points on y = 3 (facing -y), none near their
+/// intersection (where a point would be an inlier of both planes), cameras standing
+/// at 1.6 m looking at the wall.
+void roomCorner(int floor, int wall, std::vector<Eigen::Vector3d>& points,
+                std::vector<ScenePose>& cameras) {
+  synth::SplitMix64 rng(21);
+  points.clear();
+  cameras.clear();
+  for (int i = 0; i < floor; ++i)
+    points.emplace_back(rng.uniform(-3, 3), rng.uniform(-1, 2.7), 0.0);
+  for (int i = 0; i < wall; ++i) points.emplace_back(rng.uniform(-3, 3), 3.0, rng.uniform(0.3, 3));
+  for (int i = 0; i < 8; ++i) {
+    ScenePose c;
+    c.p_wc = Eigen::Vector3d(-1.0 + 0.25 * i, -2.0, 1.6 + 0.02 * i);
+    c.R_wc = lookAt(c.p_wc, Eigen::Vector3d(0.0, 3.0, 1.0), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("plane frame prefers the ground to a larger wall", "[scene_frame]") {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<ScenePose> cameras;
+  roomCorner(150, 300, points, cameras);
+  SceneFrameOptions options;
+  SceneFrame f = computeSceneFrame(points, {}, cameras, options);
+  REQUIRE(f.status == SceneFrameStatus::kOk);
+  CHECK((f.plane_normal - Eigen::Vector3d::UnitZ()).norm() < 1e-9);
+  CHECK(f.plane_inliers == 150);
+  std::vector<double> heights;
+  for (const auto& c : cameras) heights.push_back(c.p_wc.z());
+  CHECK(f.world_to_scene.scale == Approx(1.0 / median(heights)));
+
+  options.prefer_ground = false;  // the dominant plane is the wall
+  f = computeSceneFrame(points, {}, cameras, options);
+  REQUIRE(f.status == SceneFrameStatus::kOk);
+  CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);  // facing the cameras
+  CHECK(f.plane_inliers == 300);
+
+  // A ground with too few points (below ground_min_ratio of the wall's) loses to the wall.
+  roomCorner(60, 300, points, cameras);
+  f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.status == SceneFrameStatus::kOk);
+  CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);
+}

@@ -203,7 +203,7 @@ PlaneFit findDominantPlane(const std::vector<Eigen::Vector3d>& points,
   if (up.isZero()) return fit;
   const double min_cos = std::cos(options.ground_max_tilt_deg * std::numbers::pi / 180.0);
   if (fit.found && std::abs(fit.plane.normal.dot(up)) >= min_cos) return fit;
-  const PlaneFit ground = refinePlane(
+  PlaneFit ground = refinePlane(
       points, cameras, ransacPlane(points, threshold, options, &up, min_cos), threshold, options);
   const bool level = std::abs(ground.plane.normal.dot(up)) >= min_cos;  // still after the refit
   if (ground.found && level &&

@@ -396,3 +396,12 @@ TEST_CASE("writeAllOutputs of a 340-frame solve is fast", "[export][speed]") {
   CHECK(checkColmapConsistency(model, error));
   CHECK(model.points.size() == rec.points.size());
 }
+
+TEST_CASE("writeAllOutputs reports an unwritable directory", "[export]") {
+  const Reconstruction rec = et::makeReconstruction(3, 0);
+  et::TempDir dir("export-fail");
+  std::string error;
+  REQUIRE(epitrack::hal::writeTextAtomic(dir.file("a_file"), "x", error));
+  CHECK_FALSE(writeAllOutputs(rec, dir.file("a_file") + "/out", error));
+  CHECK(error.find("a_file") != std::string::npos);
+}

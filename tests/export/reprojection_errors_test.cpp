@@ -1,0 +1,56 @@
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "tests/export/export_fixture.hpp"
+#include "tools/export/output_writers.hpp"
+#include "tools/export/reprojection_errors.hpp"
+
+using namespace epitrack::io;
+namespace et = epitrack::test;
+
+TEST_CASE("reprojection errors of exact observations are zero", "[export][reproj]") {
+  Reconstruction rec = et::makeReconstruction(10, 4, -0.1, 0.02);
+  computeReprojectionErrors(rec);
+  CHECK(rec.mean_reproj_px < 1e-9);
+  CHECK(rec.median_reproj_px < 1e-9);
+  for (const auto& c : rec.cameras) {
+    if (c.solved) {
+      CHECK(c.inliers == 25);
+      CHECK(c.mean_reproj_px < 1e-9);
+    }
+  }
+  // Observations of unsolved frames get no residual; points count solved frames only.
+  for (const auto& o : rec.observations) CHECK(std::isnan(o.residual_px) == (o.frame % 4 == 3));
+  for (const auto& p : rec.points) CHECK(p.observations == 8);
+}
+
+TEST_CASE("reprojection errors: known offsets, mean, median and outliers", "[export][reproj]") {
+  Reconstruction rec = et::makeReconstruction(4, 0);
+  // Offsets 3-4-5 triangles: residual 5 px on every observation of frame 1, 1 px (x) on frame 2.
+  for (auto& o : rec.observations) {
+    if (o.frame == 1) {
+      o.x += 3.0;
+      o.y -= 4.0;
+    } else if (o.frame == 2) {
+      o.x += 1.0;
+    }
+  }
+  computeReprojectionErrors(rec);
+  CHECK(rec.cameras[1].mean_reproj_px == Approx(5.0));
+  CHECK(rec.cameras[2].mean_reproj_px == Approx(1.0));
+  CHECK(rec.cameras[0].mean_reproj_px == Approx(0.0).margin(1e-9));
+  CHECK(rec.mean_reproj_px == Approx((5.0 + 1.0) / 4.0));
+  CHECK(rec.median_reproj_px == Approx(0.5));  // 50 zeros, 25 ones, 25 fives: mid of 0 and 1
+  for (const auto& p : rec.points) CHECK(p.reproj_px == Approx(1.5));
+
+  computeReprojectionErrors(rec, 2.0);  // frame 1's observations are outliers now
+  CHECK(rec.cameras[1].inliers == 0);
+  CHECK(std::isnan(rec.cameras[1].mean_reproj_px));
+  CHECK(rec.mean_reproj_px == Approx(1.0 / 3.0));
+  CHECK(rec.observations[30].residual_px == Approx(5.0));  // still recorded
+  // summary.json reports them, never NaN.
+  const std::string json = formatSummaryJson(rec);
+  CHECK(json.find("nan") == std::string::npos);
+  CHECK(json.find("\"mean_reproj_px\": null") != std::string::npos);  // camera 1
+}

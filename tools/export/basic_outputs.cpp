@@ -1,0 +1,186 @@
+// cameras.tum, intrinsics.txt, points.ply and summary.json.
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "hal/io/text_formats.hpp"
+#include "tools/export/json_writer.hpp"
+#include "tools/export/output_writers.hpp"
+
+namespace epitrack::io {
+namespace {
+
+bool finitePose(const SolvedCamera& c) { return c.R_wc.allFinite() && c.p_wc.allFinite(); }
+
+void appendLittleEndianFloat(std::vector<uint8_t>& out, float v) {
+  uint32_t bits = 0;
+  std::memcpy(&bits, &v, sizeof(bits));
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(bits >> (8 * i)));
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const std::size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid), values.end());
+  double m = values[mid];
+  if (values.size() % 2 == 0) {
+    const double below =
+        *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid));
+    m = 0.5 * (m + below);
+  }
+  return m;
+}
+
+double mean(const std::vector<double>& values) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double sum = 0.0;
+  for (const double v : values) sum += v;
+  return sum / static_cast<double>(values.size());
+}
+
+}  // namespace
+
+std::string formatCamerasTum(const Reconstruction& rec) {
+  std::vector<hal::TrajectoryEntry> entries;
+  entries.reserve(rec.cameras.size());
+  for (const SolvedCamera& c : rec.cameras) {
+    if (!c.solved || !finitePose(c)) continue;
+    hal::TrajectoryEntry e;
+    e.t = rec.has_timestamps ? c.timestamp : static_cast<double>(c.frame);
+    e.position = c.p_wc;
+    e.rotation = Eigen::Quaterniond(c.R_wc).normalized();
+    entries.push_back(e);
+  }
+  return hal::formatTrajectory(entries,
+                               "epitrack-solve camera track (frames without a solution "
+                               "are omitted)");
+}
+
+std::string formatIntrinsicsFile(const Reconstruction& rec) {
+  return hal::formatIntrinsics(rec.intrinsics,
+                               "epitrack-solve intrinsics (focal " + rec.focal_source + ")");
+}
+
+std::vector<uint8_t> formatPointsPly(const Reconstruction& rec) {
+  std::size_t count = 0;
+  for (const ScenePoint& p : rec.points) count += p.X.allFinite() ? 1 : 0;
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\ncomment epitrack-solve scene points (scene frame)\n"
+      "element vertex " +
+      std::to_string(count) +
+      "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+      "property uchar green\nproperty uchar blue\nend_header\n";
+  std::vector<uint8_t> out(header.begin(), header.end());
+  out.reserve(out.size() + count * 15);
+  for (const ScenePoint& p : rec.points) {
+    if (!p.X.allFinite()) continue;
+    for (int i = 0; i < 3; ++i) appendLittleEndianFloat(out, static_cast<float>(p.X[i]));
+    for (int i = 0; i < 3; ++i) out.push_back(p.gray);
+  }
+  return out;
+}
+
+void reprojectionStatistics(const Reconstruction& rec, double& mean_px, double& median_px) {
+  mean_px = rec.mean_reproj_px;
+  median_px = rec.median_reproj_px;
+  if (std::isfinite(mean_px) && std::isfinite(median_px)) return;
+  std::vector<double> residuals;
+  for (const PointObservation& o : rec.observations) {
+    if (std::isfinite(o.residual_px)) residuals.push_back(o.residual_px);
+  }
+  if (residuals.empty()) {
+    for (const ScenePoint& p : rec.points) {
+      if (std::isfinite(p.reproj_px)) residuals.push_back(p.reproj_px);
+    }
+  }
+  if (!std::isfinite(mean_px)) mean_px = mean(residuals);
+  if (!std::isfinite(median_px)) median_px = median(residuals);
+}
+
+std::string formatSummaryJson(const Reconstruction& rec) {
+  int solved = 0;
+  int keyframes = 0;
+  for (const SolvedCamera& c : rec.cameras) {
+    solved += c.solved ? 1 : 0;
+    keyframes += (c.solved && c.keyframe) ? 1 : 0;
+  }
+  int finite_points = 0;
+  for (const ScenePoint& p : rec.points) finite_points += p.X.allFinite() ? 1 : 0;
+  double mean_px = 0.0;
+  double median_px = 0.0;
+  reprojectionStatistics(rec, mean_px, median_px);
+  const CameraIntrinsics& k = rec.intrinsics;
+
+  JsonWriter j;
+  j.beginObject();
+  j.field("status", rec.status);
+  if (!rec.message.empty()) j.field("message", rec.message);
+  j.field("frames", rec.frames);
+  j.field("solved_frames", solved);
+  j.field("keyframes", keyframes);
+  j.field("focal_px", k.fx);
+  j.field("focal_source", rec.focal_source);
+  j.field("focal_observable", rec.focal_observable);
+  j.field("motion", rec.motion);
+  j.field("mean_reproj_px", mean_px);
+  j.field("median_reproj_px", median_px);
+  j.field("points", finite_points);
+  j.field("observations", static_cast<int64_t>(rec.observations.size()));
+  j.key("seconds");
+  j.beginObject();
+  for (const auto& [stage, secs] : rec.seconds.stages) j.field(stage, secs);
+  j.field("total", rec.seconds.total);
+  j.endObject();
+  j.key("intrinsics");
+  j.beginObject();
+  j.field("fx", k.fx);
+  j.field("fy", k.fy);
+  j.field("cx", k.cx);
+  j.field("cy", k.cy);
+  j.field("width", k.width);
+  j.field("height", k.height);
+  j.field("k1", k.k1);
+  j.field("k2", k.k2);
+  j.endObject();
+  j.key("scene_frame");
+  j.beginObject();
+  j.field("origin", rec.origin);
+  j.field("plane_found", rec.plane_found);
+  if (!rec.origin_note.empty()) j.field("note", rec.origin_note);
+  // Plane-based frames have +z up; the first-camera frame keeps the camera axes (-y up).
+  j.field("up", std::string(rec.plane_found ? "+z" : "-y"));
+  j.endObject();
+  j.key("focal_estimates");
+  j.beginArray();
+  for (const FocalEstimate& f : rec.focal_estimates) {
+    j.beginObject();
+    j.field("frame_a", f.frame_a);
+    j.field("frame_b", f.frame_b);
+    j.field("focal_px", f.focal_px);
+    j.field("coherent", f.coherent);
+    j.endObject();
+  }
+  j.endArray();
+  j.key("cameras");
+  j.beginArray();
+  for (const SolvedCamera& c : rec.cameras) {
+    j.beginObject();
+    j.field("frame", c.frame);
+    j.field("solved", c.solved);
+    j.field("keyframe", c.keyframe);
+    j.field("inliers", c.inliers);
+    j.field("features", c.features);
+    j.field("mean_reproj_px", c.mean_reproj_px);
+    j.endObject();
+  }
+  j.endArray();
+  j.endObject();
+  return j.text();
+}
+
+}  // namespace epitrack::io

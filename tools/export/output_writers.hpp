@@ -1,0 +1,55 @@
+#pragma once
+
+// Writers of every output of epitrack-solve (ARCHITECTURE.md "File formats" and the epitrack-solve
+// outputs): each format has a pure `format*` function returning the file's bytes (tested directly)
+// and writeAllOutputs() writes them all atomically (temporary name + rename) into a directory.
+// Conventions per file are documented at each function and in notes/README-outputs.md.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "tools/export/reconstruction.hpp"
+
+namespace epitrack::io {
+
+/// cameras.tum: `t tx ty tz qx qy qz qw`, T_wc, t = frame index (or timestamp when the clip has
+/// them); unsolved frames omitted.
+std::string formatCamerasTum(const Reconstruction& rec);
+
+/// intrinsics.txt through hal::formatIntrinsics.
+std::string formatIntrinsicsFile(const Reconstruction& rec);
+
+/// points.ply: binary little-endian PLY, `float x y z` + `uchar red green blue` (gray repeated),
+/// one vertex per scene point with finite coordinates, in Reconstruction::points order.
+std::vector<uint8_t> formatPointsPly(const Reconstruction& rec);
+
+/// summary.json: the ARCHITECTURE.md fields plus extras; non-finite numbers are written as null.
+std::string formatSummaryJson(const Reconstruction& rec);
+
+/// Mean and median reprojection error as summary.json reports them (see Reconstruction).
+void reprojectionStatistics(const Reconstruction& rec, double& mean_px, double& median_px);
+
+/// COLMAP text model (https://colmap.github.io/format.html). COLMAP puts the pixel origin at the
+/// top-left corner of the top-left pixel, so cx, cy and every 2D point get +0.5. Camera model:
+/// PINHOLE (no distortion), SIMPLE_RADIAL (fx = fy, k2 = 0), RADIAL (fx = fy) or OPENCV.
+/// Image ids are frame index + 1; point ids are ours.
+std::string formatColmapCameras(const Reconstruction& rec);
+std::string formatColmapImages(const Reconstruction& rec, const ExportOptions& options);
+std::string formatColmapPoints3D(const Reconstruction& rec);
+
+/// blender_camera.py: run in Blender (`blender --python blender_camera.py` or the Text Editor).
+std::string formatBlenderScript(const Reconstruction& rec, const ExportOptions& options);
+
+/// camera.chan (Nuke): `frame tx ty tz rx ry rz vfov`, Nuke's Y-up world and camera looking down
+/// -Z, rotations in degrees for Nuke's default order ZXY (R = Ry * Rx * Rz), vfov in degrees.
+std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& options);
+
+/// Writes cameras.tum, intrinsics.txt, points.ply, summary.json, colmap/{cameras,images,
+/// points3D}.txt, blender_camera.py and camera.chan into `dir` (created if missing). Returns
+/// false with a message naming the file on the first failure.
+bool writeAllOutputs(const Reconstruction& rec, const std::string& dir, std::string& error);
+bool writeAllOutputs(const Reconstruction& rec, const std::string& dir,
+                     const ExportOptions& options, std::string& error);
+
+}  // namespace epitrack::io

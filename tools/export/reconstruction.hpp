@@ -1,0 +1,116 @@
+#pragma once
+
+// The result of an offline solve (epitrack-solve, issue 6) as the exporters see it: the solver
+// fills a Reconstruction and tools/export writes it to every output format of ARCHITECTURE.md.
+// Plain data, no invariants beyond those documented per field; poses are T_wc (camera -> world)
+// in the camera convention of ARCHITECTURE.md (x right, y down, z forward).
+//
+// Typical use at the end of epitrack-solve:
+//   io::Reconstruction rec = ...;                        // filled by the solver
+//   io::applySceneFrame(rec, options);                   // reconstruction_scene_frame.hpp
+//   io::computeReprojectionErrors(rec);                  // reprojection_errors.hpp
+//   if (!io::writeAllOutputs(rec, out_dir, error)) ...   // output_writers.hpp
+// with io::ProgressReporter (progress.hpp) reporting the stages on stderr.
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/geometry/camera_intrinsics.hpp"
+
+namespace epitrack::io {
+
+/// One frame of the clip. Unsolved frames may be listed (solved = false): they are omitted from
+/// every trajectory export but counted in the summary.
+struct SolvedCamera {
+  int64_t frame = 0;       ///< frame index in the clip (0-based)
+  double timestamp = 0.0;  ///< seconds, used by cameras.tum when Reconstruction::has_timestamps
+  bool solved = false;
+  Eigen::Matrix3d R_wc = Eigen::Matrix3d::Identity();                ///< camera-to-world rotation
+  Eigen::Vector3d p_wc = Eigen::Vector3d::Zero();                    ///< camera centre in the world
+  double mean_reproj_px = std::numeric_limits<double>::quiet_NaN();  ///< NaN: unknown
+  int inliers = 0;        ///< observations used for this pose
+  int features = 0;       ///< 2D features tracked in this frame (for the report), 0: unknown
+  bool keyframe = false;  ///< used as a keyframe by the solver
+};
+
+/// One triangulated scene point (world coordinates).
+struct ScenePoint {
+  int64_t id = 0;  ///< track id, >= 0 (COLMAP's POINT3D_ID; `--origin track:ID` refers to it)
+  Eigen::Vector3d X = Eigen::Vector3d::Zero();
+  uint8_t gray = 128;  ///< intensity for the point cloud colour
+  double reproj_px = std::numeric_limits<double>::quiet_NaN();  ///< mean reprojection error
+  int observations = 0;                                         ///< track length used
+};
+
+/// One 2D measurement of a scene point in a frame (pixel coordinates of ARCHITECTURE.md: origin at
+/// the centre of the top-left pixel). Feeds COLMAP's images.txt/points3D.txt tracks.
+struct PointObservation {
+  int64_t frame = 0;
+  int64_t point_id = 0;
+  double x = 0.0;
+  double y = 0.0;
+  double residual_px =
+      std::numeric_limits<double>::quiet_NaN();  ///< reprojection error, NaN: unknown
+};
+
+/// One pairwise focal estimate of the self-calibration (for the report).
+struct FocalEstimate {
+  int64_t frame_a = 0;
+  int64_t frame_b = 0;
+  double focal_px = 0.0;
+  bool coherent = false;  ///< agreed with the chosen value
+};
+
+/// Wall time per solver stage, in the order they ran, plus the total.
+struct StageSeconds {
+  std::vector<std::pair<std::string, double>> stages;
+  double total = 0.0;
+};
+
+/// The whole solve. Fields left at their defaults are written as "unknown" (null in JSON).
+struct Reconstruction {
+  CameraIntrinsics intrinsics;        ///< includes width, height, k1, k2
+  std::vector<SolvedCamera> cameras;  ///< ordered by frame
+  std::vector<ScenePoint> points;     ///< ids unique
+  std::vector<PointObservation> observations;
+  int frames = 0;               ///< frames in the clip (>= cameras.size() of solved ones)
+  bool has_timestamps = false;  ///< cameras.tum uses SolvedCamera::timestamp instead of the index
+
+  std::string focal_source = "given";  ///< "given", "self-calibrated" or "fallback"
+  bool focal_observable = true;
+  std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
+  std::string status = "ok";       ///< "ok" or the reason the solve failed
+  std::string message;             ///< optional human sentence about the status
+  std::vector<FocalEstimate> focal_estimates;
+  StageSeconds seconds;
+
+  /// Reprojection statistics. NaN: computed by the summary from the observation residuals, or
+  /// failing those from the points' reproj_px.
+  double mean_reproj_px = std::numeric_limits<double>::quiet_NaN();
+  double median_reproj_px = std::numeric_limits<double>::quiet_NaN();
+
+  /// Scene frame (algo/sfm/scene_frame.hpp): the origin mode used and whether a plane was found.
+  std::string origin = "plane";  ///< "plane", "first-camera" or "track:ID"
+  bool plane_found = false;
+  std::string origin_note;  ///< e.g. "no dominant plane: first-camera frame used"
+
+  /// Optional image file names per frame index (basename, e.g. "000012.png"), used by COLMAP's
+  /// images.txt; frames beyond the vector are named from the index by ExportOptions.
+  std::vector<std::string> frame_names;
+};
+
+/// Settings of the exports that are not part of the solve.
+struct ExportOptions {
+  double sensor_width_mm = 36.0;         ///< Blender camera sensor width (horizontal fit)
+  int image_name_digits = 6;             ///< COLMAP image name: zero-padded frame index ...
+  std::string image_extension = ".png";  ///< ... plus this extension (when no frame_names)
+  int blender_frame_offset = 1;  ///< Blender frame = frame index + offset (Blender starts at 1)
+  int nuke_frame_offset = 0;     ///< Nuke frame = frame index + offset (Read node numbering)
+};
+
+}  // namespace epitrack::io

@@ -1,0 +1,24 @@
+#pragma once
+
+// Reprojection errors of a Reconstruction from its own data (intrinsics with k1/k2, poses, points,
+// observations), so that summary.json, the COLMAP ERROR column and the report agree with the
+// exported model whatever the solver computed internally.
+
+#include "tools/export/reconstruction.hpp"
+
+namespace epitrack::io {
+
+/// Projects a world point into a solved camera with the ARCHITECTURE.md model (pinhole + radial
+/// k1, k2 on normalized coordinates). False when the point is not in front of the camera.
+bool projectPoint(const CameraIntrinsics& k, const SolvedCamera& camera, const Eigen::Vector3d& X,
+                  Eigen::Vector2d& pixel);
+
+/// Fills PointObservation::residual_px (pixel distance between the observation and the
+/// projection; NaN when the frame is unsolved, the point missing or behind the camera), the mean
+/// per solved camera (SolvedCamera::mean_reproj_px, inliers = observations counted), the mean per
+/// point (ScenePoint::reproj_px, observations = count) and the overall mean and median
+/// (Reconstruction::mean_reproj_px / median_reproj_px). Observations whose residual exceeds
+/// `outlier_px` (> 0) are left out of every mean and count, their residual still recorded.
+void computeReprojectionErrors(Reconstruction& rec, double outlier_px = 0.0);
+
+}  // namespace epitrack::io

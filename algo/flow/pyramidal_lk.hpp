@@ -1,0 +1,101 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "algo/core/aligned_buffer.hpp"
+#include "algo/image/image_view.hpp"
+#include "algo/image/pyramid.hpp"
+
+namespace epitrack {
+
+/// Why a feature was kept or lost by the Lucas-Kanade step.
+enum class LkStatus : uint8_t {
+  kTracked,          ///< converged inside the image
+  kLeftImage,        ///< the window left the image at the finest level
+  kLowTexture,       ///< the template's gradient matrix is (near) singular
+  kNoConvergence,    ///< the update did not settle within max_iterations, or diverged
+  kResidualTooHigh,  ///< aligned, but the patch no longer looks like its template
+  kForwardBackward,  ///< tracking back did not return to the start
+};
+const char* lkStatusName(LkStatus status);
+
+struct LkOptions {
+  int window = 21;            ///< odd window side in pixels (Bouguet 2000: 2w+1)
+  int levels = 3;             ///< pyramid levels beyond the base
+  int max_iterations = 10;    ///< per level
+  double epsilon = 0.01;      ///< stop when the update is smaller than this (pixels of the level)
+  double min_eigen = 4.0;     ///< minimum eigenvalue of the mean gradient matrix, (gray/px)^2
+  double max_residual = 1e9;  ///< kResidualTooHigh beyond this mean |error| (gray levels)
+};
+
+/// Pyramidal Lucas-Kanade tracking of translation plus an intensity offset (bias), after
+/// Bouguet 2000 ("Pyramidal implementation of the Lucas Kanade feature tracker": coarse to fine,
+/// iterative per level, 2x2 solve per iteration), in the inverse-compositional form (Baker &
+/// Matthews 2004 §3.2): each feature owns a *template* per level, the patch around it in the
+/// image where the template was taken, with its Scharr gradients and the Gauss-Newton Hessian
+/// precomputed, so an iteration is one pass of bilinear sampling over the window.
+///
+/// Aligning against the template (the patch at detection) instead of the previous frame does not
+/// accumulate frame-to-frame error (drift); the caller refreshes a template when its residual
+/// grows (appearance change) with `setTemplate` at the tracked position.
+///
+/// Fixed point: bilinear weights in kWeightBits = 14 bits, the last weight the remainder so the
+/// four sum exactly to 1 << 14; samples and template values carry kValueBits = 5 fractional bits;
+/// products accumulate in int32 per row and int64 per window. Capacity (feature slots) is fixed
+/// at construction; no call allocates afterwards.
+class PyramidalLk {
+ public:
+  static constexpr int kWeightBits = 14;
+  static constexpr int kValueBits = 5;
+  static constexpr int kMaxLevels = Pyramid::kMaxLevels;
+
+  PyramidalLk(const LkOptions& options, int capacity);
+
+  /// Takes the template of slot `slot` from `pyramid` around (x, y) (base-level pixels) on every
+  /// level where the window fits. Returns kTracked, kLeftImage (window outside the base level) or
+  /// kLowTexture (base-level gradient matrix below min_eigen).
+  LkStatus setTemplate(int slot, const Pyramid& pyramid, float x, float y);
+
+  /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
+  /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and
+  /// `residual` the mean absolute error at the base level after removing the bias (gray levels).
+  LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, float& residual) const;
+
+  [[nodiscard]] const LkOptions& options() const { return options_; }
+  [[nodiscard]] int capacity() const { return capacity_; }
+  /// Iterations spent by the last `align` calls (summed; reset by resetCounters).
+  [[nodiscard]] long iterations() const { return iterations_; }
+  void resetCounters() const { iterations_ = 0; }
+
+ private:
+  struct LevelTemplate {
+    double offset_x = 0.0;  ///< feature position minus the template's integer centre (level px)
+    double offset_y = 0.0;
+    bool valid = false;
+    std::array<double, 9> H_inv{};  ///< inverse of the 3x3 Gauss-Newton Hessian (x, y, bias)
+  };
+  [[nodiscard]] std::size_t patchIndex(int slot, int level) const {
+    return (static_cast<std::size_t>(slot) * static_cast<std::size_t>(level_count_) +
+            static_cast<std::size_t>(level)) *
+           static_cast<std::size_t>(area_);
+  }
+  /// Iterates on one level; (cx, cy) is the template centre in level pixels, updated in place.
+  LkStatus alignLevel(int slot, int level, ImageView<const uint8_t> image, double& cx, double& cy,
+                      double& residual, bool want_residual) const;
+
+  LkOptions options_;
+  int capacity_ = 0;
+  int level_count_ = 0;
+  int half_ = 0;
+  int side_ = 0;
+  int area_ = 0;
+  AlignedBuffer<int16_t> value_;   // template values << kValueBits
+  AlignedBuffer<int16_t> grad_x_;  // Scharr (unnormalised, 32 x intensity per pixel)
+  AlignedBuffer<int16_t> grad_y_;
+  std::vector<LevelTemplate> levels_;  // sized at construction
+  mutable long iterations_ = 0;
+};
+
+}  // namespace epitrack

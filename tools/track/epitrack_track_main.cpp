@@ -1,0 +1,184 @@
+// epitrack-track: runs the 2D feature tracker over an INPUT and writes tracks.csv
+// (ARCHITECTURE.md "Commands": epitrack-track INPUT --out tracks.csv [--features N] [--window PX]
+// [--levels L]).
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "algo/image/image.hpp"
+#include "algo/tracking/feature_tracker.hpp"
+#include "hal/frame_source.hpp"
+#include "hal/io/file_util.hpp"
+#include "hal/io/image_codec.hpp"
+#include "hal/io/tracks_csv.hpp"
+#include "tools/common/command_line.hpp"
+
+namespace hal = epitrack::hal;
+using epitrack::FeatureTracker;
+using epitrack::FeatureTrackerOptions;
+using epitrack::Image;
+using epitrack::tools::CommandLine;
+
+namespace {
+
+/// A user mask: one PGM for every frame, or a directory with one image per frame (by sorted
+/// position; the last one is reused when the directory holds fewer).
+class MaskSource {
+ public:
+  bool open(const std::string& spec, std::string& error) {
+    if (spec.empty()) return true;
+    if (hal::isDirectory(spec)) {
+      if (!hal::listFrameFiles(spec, paths_, error)) return false;
+    } else {
+      paths_.push_back(spec);
+    }
+    return true;
+  }
+  /// The mask for frame `index` (empty view when there is none).
+  bool maskFor(int64_t index, int width, int height, epitrack::ImageView<const uint8_t>& mask,
+               std::string& error) {
+    mask = {};
+    if (paths_.empty()) return true;
+    const auto i =
+        static_cast<std::size_t>(std::min<int64_t>(index, static_cast<int64_t>(paths_.size()) - 1));
+    if (i != loaded_) {
+      if (!decoder_.decodeFile(paths_[i], image_, error)) return false;
+      loaded_ = i;
+    }
+    if (image_.width() != width || image_.height() != height) {
+      error = paths_[i] + ": mask is " + std::to_string(image_.width()) + "x" +
+              std::to_string(image_.height()) + ", frames are " + std::to_string(width) + "x" +
+              std::to_string(height);
+      return false;
+    }
+    mask = image_.constView();
+    return true;
+  }
+
+ private:
+  std::vector<std::string> paths_;
+  std::size_t loaded_ = static_cast<std::size_t>(-1);
+  hal::GrayImageDecoder decoder_;
+  Image<uint8_t> image_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string input;
+  std::string out;
+  std::string mask_spec;
+  FeatureTrackerOptions o;
+  int max_frames = 0;
+  bool no_kalman = false;
+  bool quiet = false;
+  CommandLine cl(
+      "epitrack-track", "INPUT --out tracks.csv [options]",
+      "Tracks Shi-Tomasi corners through INPUT with pyramidal Lucas-Kanade and a Kalman\n"
+      "gate, re-detecting as tracks are lost, and writes tracks.csv (frame,track_id,x,y).\n"
+      "INPUT: a frame directory, .y4m, .mjpeg or v4l2:/dev/videoN (see the README).");
+  cl.positional("INPUT", "frames to track", &input);
+  cl.text("out", "FILE", "tracks.csv to write", &out);
+  cl.require("out");
+  cl.integer("features", "N", "features to keep (default 300)", &o.max_features, 1, 100000);
+  cl.integer("window", "PX", "LK window side, odd (default 21)", &o.window, 3, 99);
+  cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.levels, 0, 7);
+  cl.real("min-distance", "PX", "minimum distance between features (default 10)", &o.min_distance,
+          1.0, 1000.0);
+  cl.real("redetect", "FRACTION",
+          "re-detect when fewer than this fraction of --features live (default 0.9)",
+          &o.redetect_fraction, 0.0, 1.0);
+  cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
+          &mask_spec);
+  cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
+  cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
+  cl.flag("quiet", "no progress on stderr", &quiet);
+  if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
+    return CommandLine::exitCode(r);
+  if (o.window % 2 == 0) return cl.usageError("--window must be odd");
+  o.kalman_gate = !no_kalman;
+
+  std::string error;
+  auto source = hal::openFrameSource(input, {}, error);
+  if (!source) {
+    std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
+    return 1;
+  }
+  MaskSource masks;
+  if (!masks.open(mask_spec, error)) {
+    std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
+    return 1;
+  }
+  std::unique_ptr<FeatureTracker> tracker;
+  std::vector<hal::TrackRow> rows;
+  std::map<int32_t, int> lengths;
+  int frames = 0;
+  double ms_total = 0.0;
+  hal::Frame frame;
+  while (max_frames == 0 || frames < max_frames) {
+    const hal::FrameStatus st = source->next(frame);
+    if (st == hal::FrameStatus::kEndOfStream) break;
+    if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
+      if (!quiet)
+        std::fprintf(stderr, "epitrack-track: skipping frame: %s\n", source->lastError().c_str());
+      continue;
+    }
+    if (st != hal::FrameStatus::kOk) {
+      std::fprintf(stderr, "epitrack-track: %s\n", source->lastError().c_str());
+      return 1;
+    }
+    if (!tracker) {
+      tracker = std::make_unique<FeatureTracker>(o, frame.luma.width, frame.luma.height);
+    }
+    epitrack::ImageView<const uint8_t> mask;
+    if (!masks.maskFor(frames, frame.luma.width, frame.luma.height, mask, error)) {
+      std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
+      return 1;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
+      std::fprintf(stderr, "epitrack-track: frame %lld is %dx%d, the first was %dx%d\n",
+                   static_cast<long long>(frame.index), frame.luma.width, frame.luma.height,
+                   tracker->pyramid().width(), tracker->pyramid().height());
+      return 1;
+    }
+    ms_total +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    for (const auto& f : tracker->features()) {
+      rows.push_back(hal::TrackRow{frame.index, f.id, f.x, f.y});
+      ++lengths[f.id];
+    }
+    ++frames;
+    if (!quiet && frames % 50 == 0) {
+      std::fprintf(stderr, "epitrack-track: frame %d, %zu live tracks\n", frames,
+                   tracker->features().size());
+    }
+  }
+  if (frames == 0) {
+    std::fprintf(stderr, "epitrack-track: %s: no frames\n", input.c_str());
+    return 1;
+  }
+  if (!hal::writeTracksCsv(out, rows, error)) {
+    std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
+    return 1;
+  }
+  if (!quiet) {
+    std::vector<int> len;
+    for (const auto& [id, n] : lengths) len.push_back(n);
+    std::sort(len.begin(), len.end());
+    const double mean =
+        static_cast<double>(rows.size()) / static_cast<double>(len.size() ? len.size() : 1);
+    const long long long_tracks =
+        std::count_if(len.begin(), len.end(), [](int n) { return n >= 50; });
+    std::fprintf(stderr,
+                 "epitrack-track: %d frames, %zu tracks (mean length %.1f, median %d, %lld of 50+ "
+                 "frames), %zu rows, %.2f ms/frame -> %s\n",
+                 frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], long_tracks,
+                 rows.size(), ms_total / frames, out.c_str());
+  }
+  return 0;
+}

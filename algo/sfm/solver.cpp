@@ -272,22 +272,28 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
 
 bool Solver::initialize() {
   const int n = tracks_.frameCount();
-  // Homographies everywhere: a rotating camera if the homographies are rotations for one focal
-  // (then a tripod solve), otherwise a plane (initialised below when the focal is known).
+  // Homographies everywhere: a rotating camera if the homographies are rotations for one focal,
+  // otherwise a plane or a distant scene. The rotation focal then seeds the search for an
+  // initial pair (a distant scene with a short baseline still has parallax over longer gaps);
+  // only when no pair has parallax is the clip solved as a tripod.
+  bool rotation_coherent = false;
+  double rotation_focal = 0.0;
   if (motion_ == "rotation-or-plane" && !homographies_.empty()) {
     std::vector<double> fs;
     for (const auto& H : homographies_) {
       const auto e = estimateFocalFromRotation(H, width_, height_);
       if (e.observable) fs.push_back(e.focal_px);
     }
-    const double fm = median(fs);
+    rotation_focal = median(fs);
     int coherent = 0;
-    for (const double v : fs) coherent += std::abs(v / fm - 1.0) < 0.05 ? 1 : 0;
+    for (const double v : fs) coherent += std::abs(v / rotation_focal - 1.0) < 0.05 ? 1 : 0;
     const bool focal_fits =
-        options_.focal_px <= 0.0 || std::abs(fm / options_.focal_px - 1.0) < 0.1;
-    if (coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits) {
-      tripodSolve();
-      return false;
+        options_.focal_px <= 0.0 || std::abs(rotation_focal / options_.focal_px - 1.0) < 0.1;
+    rotation_coherent = coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits;
+    if (rotation_coherent && options_.focal_px <= 0.0 && !focal_observable_) {
+      f_ = rotation_focal;
+      focal_source_ = "self-calibrated";
+      focal_observable_ = true;
     }
   }
   // Candidate first frames spread over the first fifth of the clip, candidate partners at several
@@ -318,6 +324,10 @@ bool Solver::initialize() {
         init_b_ = b;
       }
     }
+  }
+  if (best_score <= 0.0 && rotation_coherent) {
+    tripodSolve();
+    return false;
   }
   if (best_score <= 0.0) {
     status_ = motion_ == "rotation-or-plane" ? Status::kPlanarScene : Status::kInitFailed;
@@ -484,12 +494,23 @@ void Solver::adjust(bool global) {
       pt_index.push_back(p);
     }
   }
-  // Observations in every keyframe (fixed keyframes join as fixed cameras).
-  std::vector<BaObservation> obs;
+  // Observations in every keyframe (fixed keyframes join as fixed cameras); residuals far beyond
+  // the inlier threshold are left out (a robust sigma cut was tried and made the orbit worse: the
+  // Huber loss already bounds their influence).
+  struct Candidate {
+    int camera, point;
+    Eigen::Vector2d xy;
+    double residual;
+  };
+  std::vector<Candidate> candidates;
   for (const int f : keyframes_) {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
+      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
+          points_[static_cast<std::size_t>(p)].X);
+      if (!(pc.z() > 0.0)) continue;
+      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
       int c = cam_of_frame[static_cast<std::size_t>(f)];
       if (c < 0) {
         c = static_cast<int>(cams.size());
@@ -498,15 +519,14 @@ void Solver::adjust(bool global) {
         cam_fixed.push_back(1);
         cam_frame.push_back(f);
       }
-      // Skip observations the current estimate calls outliers (far beyond the threshold).
-      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
-          points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const Eigen::Vector2d e = (pc.hnormalized() - normalized(o)) * f_;
-      if (e.norm() > 4.0 * options_.reproj_threshold_px) continue;
-      obs.push_back({c, point_slot[static_cast<std::size_t>(p)], Eigen::Vector2d(o.x, o.y)});
+      candidates.push_back(
+          {c, point_slot[static_cast<std::size_t>(p)], Eigen::Vector2d(o.x, o.y), e});
     }
   }
+  const double cut = 4.0 * options_.reproj_threshold_px;
+  std::vector<BaObservation> obs;
+  for (const auto& c : candidates)
+    if (c.residual <= cut) obs.push_back({c.camera, c.point, c.xy});
   // Gauge: the oldest keyframe fixed; with all free (global), fix the initial pair's first frame.
   bool any_fixed = false;
   for (const auto v : cam_fixed) any_fixed = any_fixed || v != 0;

@@ -112,12 +112,24 @@ void OverlayRenderer::drawLines(const LineSet& lines, const Eigen::Isometry3d& T
     const double len = d.norm();
     if (len < 1e-9) continue;
     const Eigen::Vector2d n = Eigen::Vector2d(-d.y(), d.x()) * (0.5 * lines.width_px / len);
-    const ScreenVertex a0{a.x + n.x(), a.y + n.y(), a.inv_z};
-    const ScreenVertex a1{a.x - n.x(), a.y - n.y(), a.inv_z};
-    const ScreenVertex b0{b.x + n.x(), b.y + n.y(), b.inv_z};
-    const ScreenVertex b1{b.x - n.x(), b.y - n.y(), b.inv_z};
-    rasterizeTriangle(a0, a1, b1, lines.color);
-    rasterizeTriangle(a0, b1, b0, lines.color);
+    // Split long lines into pieces of at most 16 px: a thin diagonal triangle's bounding box
+    // would otherwise cover most of the frame and the rasterizer would test every sample in it.
+    // Screen position and 1/z are both linear along the projected segment, so pieces are exact.
+    const int pieces = std::max(1, static_cast<int>(std::ceil(len / 16.0)));
+    for (int k = 0; k < pieces; ++k) {
+      const double s0 = static_cast<double>(k) / pieces;
+      const double s1 = static_cast<double>(k + 1) / pieces;
+      const ScreenVertex p0{a.x + s0 * (b.x - a.x), a.y + s0 * (b.y - a.y),
+                            a.inv_z + s0 * (b.inv_z - a.inv_z)};
+      const ScreenVertex p1{a.x + s1 * (b.x - a.x), a.y + s1 * (b.y - a.y),
+                            a.inv_z + s1 * (b.inv_z - a.inv_z)};
+      const ScreenVertex a0{p0.x + n.x(), p0.y + n.y(), p0.inv_z};
+      const ScreenVertex a1{p0.x - n.x(), p0.y - n.y(), p0.inv_z};
+      const ScreenVertex b0{p1.x + n.x(), p1.y + n.y(), p1.inv_z};
+      const ScreenVertex b1{p1.x - n.x(), p1.y - n.y(), p1.inv_z};
+      rasterizeTriangle(a0, a1, b1, lines.color);
+      rasterizeTriangle(a0, b1, b0, lines.color);
+    }
   }
 }
 

@@ -1,0 +1,93 @@
+// epitrack-solve: from a video to a camera track and point cloud (ARCHITECTURE.md "Commands").
+#include <cstdio>
+#include <string>
+
+#include "tools/common/command_line.hpp"
+#include "tools/export/reconstruction_scene_frame.hpp"
+#include "tools/solve/solve_pipeline.hpp"
+
+using epitrack::tools::CommandLine;
+
+namespace {
+
+bool parseVector(const std::string& text, Eigen::Vector3d& v, std::string& error) {
+  double a = 0, b = 0, c = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &a, &b, &c, &tail) != 3 ||
+      !std::isfinite(a + b + c)) {
+    error = "expected X,Y,Z (three numbers separated by commas), got '" + text + "'";
+    return false;
+  }
+  v = Eigen::Vector3d(a, b, c);
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  epitrack::tools::SolveCommandOptions o;
+  // A sparse 2D tracker sees far fewer corners on a grazing floor than on a facing wall: accept a
+  // level plane with a tenth of the wall's support as the ground.
+  o.scene.ground_min_ratio = 0.1;
+  o.scene.min_plane_fraction = 0.05;
+  std::string distortion = "none";
+  bool quiet = false;
+  CommandLine cl(
+      "epitrack-solve", "INPUT --out DIR [options]",
+      "Tracks INPUT, self-calibrates the focal length (unless given), reconstructs the camera\n"
+      "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
+      "summary.json, colmap/, blender_camera.py, camera.chan and, with --render, the augmented\n"
+      "frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
+      "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.");
+  cl.positional("INPUT", "frames to solve", &o.input);
+  cl.text("out", "DIR", "output directory (created)", &o.out_dir);
+  cl.require("out");
+  cl.text("intrinsics", "FILE", "given intrinsics (fx fy cx cy width height [k1 k2])",
+          &o.intrinsics_file);
+  cl.real("focal", "PX", "given focal length in pixels (principal point at the centre)",
+          &o.focal_px, 1.0, 1e6);
+  cl.choice("distortion", {"none", "k1", "k1k2"},
+            "radial distortion to estimate in the final bundle adjustment (default none)",
+            &distortion);
+  cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
+          &o.mask);
+  cl.text("origin", "plane|first-camera|track:ID",
+          "scene frame: dominant plane (default), the first camera, or a track's point",
+          &o.origin_text);
+  cl.choice("render", {"towers", "cube", "axes", "none"},
+            "virtual object rendered into DIR/augmented (default none)", &o.render);
+  cl.option("object-at", "X,Y,Z", "where the object stands in the scene frame (default 0,0,0)",
+            [&](const std::string& v, std::string& e) { return parseVector(v, o.object_at, e); });
+  cl.real("object-scale", "S", "object size factor (default 1)", &o.object_scale, 1e-6, 1e6);
+  cl.integer("features", "N", "2D features tracked (default 300)", &o.tracker.max_features, 8,
+             100000);
+  cl.integer("window", "PX", "LK window side, odd (default 21)", &o.tracker.window, 3, 99);
+  cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.tracker.levels, 0, 7);
+  cl.real("keyframe-parallax", "DEG", "median parallax that makes a new keyframe (default 2)",
+          &o.solver.keyframe_parallax_deg, 0.1, 30.0);
+  cl.integer("ba-window", "N", "keyframes refined while solving (default 8)", &o.solver.ba_window,
+             2, 1000);
+  long long seed = 1;
+  cl.option("seed", "S", "RANSAC seed (default 1)", [&](const std::string& v, std::string& e) {
+    char* end = nullptr;
+    seed = std::strtoll(v.c_str(), &end, 10);
+    if (end == v.c_str() || *end != 0 || seed < 0) {
+      e = "expected a non-negative integer, got '" + v + "'";
+      return false;
+    }
+    return true;
+  });
+  cl.flag("quiet", "no progress on stderr", &quiet);
+  if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
+    return CommandLine::exitCode(r);
+  if (o.tracker.window % 2 == 0) return cl.usageError("--window must be odd");
+  if (!o.intrinsics_file.empty() && o.focal_px > 0.0)
+    return cl.usageError("give either --intrinsics or --focal, not both");
+  std::string error;
+  if (!epitrack::io::parseOriginOption(o.origin_text, o.scene, error))
+    return cl.usageError("--origin: " + error);
+  o.distortion = distortion == "k1k2" ? 2 : distortion == "k1" ? 1 : 0;
+  o.solver.seed = static_cast<uint64_t>(seed);
+  if (quiet) o.progress = epitrack::io::ProgressReporter::Mode::kQuiet;
+  return epitrack::tools::runSolve(o);
+}

@@ -1,0 +1,355 @@
+#include "tools/solve/solve_pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <unordered_map>
+
+#include <Eigen/Geometry>
+
+#include "algo/image/image.hpp"
+#include "hal/frame_source.hpp"
+#include "hal/io/file_util.hpp"
+#include "hal/io/image_codec.hpp"
+#include "hal/io/text_formats.hpp"
+#include "tools/common/mask_source.hpp"
+#include "tools/export/output_writers.hpp"
+#include "tools/export/reconstruction_scene_frame.hpp"
+#include "tools/export/reprojection_errors.hpp"
+#include "tools/render/avi_writer.hpp"
+#include "tools/render/overlay_renderer.hpp"
+
+namespace epitrack::tools {
+
+using render::LineSet;
+using render::makeAxes;
+using render::makeCube;
+using render::makeGroundGrid;
+using render::makeTowers;
+using render::Mesh;
+using render::MjpegAviWriter;
+using render::OverlayRenderer;
+using render::Rgb8;
+
+namespace {
+
+class StageClock {
+ public:
+  explicit StageClock(io::StageSeconds& s) : s_(s), start_(now()), stage_start_(now()) {}
+  void lap(const std::string& name) {
+    const auto t = now();
+    s_.stages.emplace_back(name, std::chrono::duration<double>(t - stage_start_).count());
+    stage_start_ = t;
+    s_.total = std::chrono::duration<double>(t - start_).count();
+  }
+
+ private:
+  static std::chrono::steady_clock::time_point now() { return std::chrono::steady_clock::now(); }
+  io::StageSeconds& s_;
+  std::chrono::steady_clock::time_point start_, stage_start_;
+};
+
+void fail(const char* what) { std::fprintf(stderr, "epitrack-solve: %s\n", what); }
+
+// Gray value of the frame at a sub-pixel position (nearest pixel), for the point colours.
+uint8_t grayAt(ImageView<const uint8_t> img, double x, double y) {
+  const int ix = std::clamp(static_cast<int>(std::lround(x)), 0, img.width - 1);
+  const int iy = std::clamp(static_cast<int>(std::lround(y)), 0, img.height - 1);
+  return img(ix, iy);
+}
+
+}  // namespace
+
+int runSolve(const SolveCommandOptions& o) {
+  io::ProgressReporter progress(o.progress);
+  io::Reconstruction rec;
+  StageClock clock(rec.seconds);
+  std::string error;
+
+  // --- given intrinsics --------------------------------------------------------------------
+  SolverOptions so = o.solver;
+  CameraIntrinsics given;
+  bool have_given = false;
+  if (!o.intrinsics_file.empty()) {
+    if (!hal::readIntrinsicsFile(o.intrinsics_file, given, error)) {
+      fail(error.c_str());
+      return 2;
+    }
+    have_given = true;
+    so.focal_px = given.fx;
+    so.k1 = given.k1;
+    so.k2 = given.k2;
+  } else if (o.focal_px > 0.0) {
+    so.focal_px = o.focal_px;
+  }
+  so.refine_distortion = o.distortion;
+
+  // --- 2D tracking of the whole clip ---------------------------------------------------------
+  hal::SourceOptions source_options;
+  auto source = hal::openFrameSource(o.input, source_options, error);
+  if (!source) {
+    fail(error.c_str());
+    return 1;
+  }
+  if (!hal::makeDirectories(o.out_dir, error)) {
+    fail(error.c_str());
+    return 1;
+  }
+  MaskSource masks;
+  if (!masks.open(o.mask, error)) {
+    fail(error.c_str());
+    return 2;
+  }
+  const long expected = static_cast<long>(source->info().frame_count);
+  progress.begin("tracking", expected);
+  std::unique_ptr<FeatureTracker> tracker;
+  TrackTable tracks;
+  std::unordered_map<int64_t, uint8_t> track_gray;
+  std::vector<int> features_per_frame;
+  std::vector<double> timestamps;
+  const bool keep_frames = o.render != "none" && o.input == "-";  // stdin cannot be re-read
+  std::vector<Image<uint8_t>> kept;
+  int width = 0, height = 0, frames = 0, skipped = 0;
+  hal::Frame frame;
+  for (;;) {
+    const hal::FrameStatus st = source->next(frame);
+    if (st == hal::FrameStatus::kEndOfStream) break;
+    if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
+      ++skipped;
+      progress.message("skipping frame: " + source->lastError());
+      continue;
+    }
+    if (st != hal::FrameStatus::kOk) {
+      fail(source->lastError().c_str());
+      return 1;
+    }
+    if (!tracker) {
+      width = frame.luma.width;
+      height = frame.luma.height;
+      tracker = std::make_unique<FeatureTracker>(o.tracker, width, height);
+      tracks.reserve(expected > 0 ? static_cast<int>(expected) : 1024,
+                     static_cast<std::size_t>(std::max<long>(expected, 1024)) *
+                         static_cast<std::size_t>(o.tracker.max_features));
+    }
+    ImageView<const uint8_t> mask;
+    if (!masks.maskFor(frames, width, height, mask, error)) {
+      fail(error.c_str());
+      return 2;
+    }
+    if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
+      const std::string msg = "frame " + std::to_string(frame.index) + " is " +
+                              std::to_string(frame.luma.width) + "x" +
+                              std::to_string(frame.luma.height) + ", the clip started at " +
+                              std::to_string(width) + "x" + std::to_string(height);
+      fail(msg.c_str());
+      return 1;
+    }
+    const auto live = tracker->features();
+    for (const auto& f : live) {
+      tracks.add(frames, f.id, f.x, f.y);
+      track_gray.try_emplace(f.id, grayAt(frame.luma, f.x, f.y));
+    }
+    features_per_frame.push_back(static_cast<int>(live.size()));
+    timestamps.push_back(frame.timestamp_s);
+    if (keep_frames) {
+      kept.emplace_back(width, height);
+      copyPixels<uint8_t>(frame.luma, kept.back().view());
+    }
+    ++frames;
+    progress.update(frames);
+  }
+  progress.end();
+  if (frames == 0) {
+    fail("the input holds no readable frame");
+    return 1;
+  }
+  tracks.setFrameCount(frames);
+  tracks.finalize();
+  clock.lap("tracking");
+
+  // --- 3D solve ---------------------------------------------------------------------------------
+  if (have_given && (given.width != width || given.height != height)) {
+    const std::string msg = "intrinsics are for " + std::to_string(given.width) + "x" +
+                            std::to_string(given.height) + " but the frames are " +
+                            std::to_string(width) + "x" + std::to_string(height);
+    fail(msg.c_str());
+    return 2;
+  }
+  Solver solver(tracks, width, height, so);
+  progress.begin("solving", 4);
+  bool ok = solver.calibrate();
+  clock.lap("calibration");
+  progress.update(1);
+  ok = ok && solver.initialize();
+  clock.lap("initialization");
+  progress.update(2);
+  ok = ok && solver.registerFrames();
+  clock.lap("registration");
+  progress.update(3);
+  ok = ok && solver.finalize();
+  clock.lap("bundle_adjustment");
+  progress.update(4);
+  progress.end();
+
+  // --- reconstruction ------------------------------------------------------------------------
+  rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
+  if (have_given) {
+    rec.intrinsics.cx = given.cx;  // reported as given; the solver assumes the centre
+    rec.intrinsics.cy = given.cy;
+  }
+  rec.intrinsics.k1 = solver.k1();
+  rec.intrinsics.k2 = solver.k2();
+  rec.frames = frames;
+  rec.focal_source = solver.focalSource();
+  rec.focal_observable = solver.focalObservable();
+  rec.motion = solver.motion();
+  rec.status = toString(solver.status());
+  rec.message = solver.message();
+  rec.has_timestamps = source->info().real_timestamps;
+  for (const auto& p : solver.pairFocals()) {
+    if (!p.observable) continue;
+    rec.focal_estimates.push_back({p.frame_a, p.frame_b, p.focal_px, p.coherent});
+  }
+  for (int f = 0; f < frames; ++f) {
+    const auto& fr = solver.frames()[static_cast<std::size_t>(f)];
+    io::SolvedCamera c;
+    c.frame = f;
+    c.timestamp = timestamps[static_cast<std::size_t>(f)];
+    c.solved = fr.solved;
+    c.R_wc = fr.pose.R_cw.transpose();
+    c.p_wc = fr.pose.centre();
+    c.mean_reproj_px = fr.rms_px;
+    c.inliers = fr.inliers;
+    c.features = features_per_frame[static_cast<std::size_t>(f)];
+    c.keyframe = fr.keyframe;
+    rec.cameras.push_back(c);
+  }
+  std::vector<char> point_valid(static_cast<std::size_t>(tracks.trackCount()), 0);
+  for (const auto& p : solver.points()) {
+    if (!p.valid || !p.X.allFinite()) continue;
+    io::ScenePoint sp;
+    sp.id = tracks.trackId(p.track);
+    sp.X = p.X;
+    const auto g = track_gray.find(sp.id);
+    sp.gray = g != track_gray.end() ? g->second : 128;
+    sp.observations = p.observations;
+    rec.points.push_back(sp);
+    point_valid[static_cast<std::size_t>(p.track)] = 1;
+  }
+  for (const auto& ob : tracks.observations()) {
+    if (!point_valid[static_cast<std::size_t>(ob.track)]) continue;
+    if (!solver.frames()[static_cast<std::size_t>(ob.frame)].solved) continue;
+    rec.observations.push_back({ob.frame, tracks.trackId(ob.track), ob.x, ob.y});
+  }
+  if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly) {
+    const auto sf = io::applySceneFrame(rec, o.scene);
+    (void)sf;
+  }
+  io::computeReprojectionErrors(rec, 2.0 * so.reproj_threshold_px);
+  clock.lap("scene_frame");
+
+  // --- augmented frames ----------------------------------------------------------------------
+  if (o.render != "none" && solver.solvedFrames() > 0) {
+    const std::string aug_dir = o.out_dir + "/augmented";
+    if (!hal::makeDirectories(aug_dir, error)) {
+      fail(error.c_str());
+      return 1;
+    }
+    std::unique_ptr<hal::FrameSource> replay;
+    if (!keep_frames) {
+      replay = hal::openFrameSource(o.input, source_options, error);
+      if (!replay) {
+        fail(error.c_str());
+        return 1;
+      }
+    }
+    OverlayRenderer renderer(rec.intrinsics);
+    const Mesh mesh = o.render == "towers" ? makeTowers(o.object_at, o.object_scale)
+                      : o.render == "cube" ? makeCube(o.object_at, o.object_scale)
+                                           : makeAxes(o.object_at, o.object_scale);
+    const LineSet grid = makeGroundGrid(o.object_at, 1.0 * o.object_scale, 0.25 * o.object_scale);
+    Image<Rgb8> rgb(width, height);
+    hal::JpegEncoder encoder;
+    MjpegAviWriter avi;
+    const double fps = source->info().fps > 0.0 ? source->info().fps : 30.0;
+    if (!avi.open(o.out_dir + "/augmented.avi", width, height, fps, error)) {
+      fail(error.c_str());
+      return 1;
+    }
+    progress.begin("rendering", frames);
+    int index = 0;
+    for (int f = 0; f < frames;) {
+      ImageView<const uint8_t> luma;
+      if (keep_frames) {
+        luma = kept[static_cast<std::size_t>(f)].constView();
+      } else {
+        const auto st = replay->next(frame);
+        if (st == hal::FrameStatus::kEndOfStream) break;
+        if (st != hal::FrameStatus::kOk) continue;  // the tracking pass skipped it too
+        luma = frame.luma;
+      }
+      for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+          const uint8_t v = luma(x, y);
+          rgb.view()(x, y) = Rgb8{v, v, v};
+        }
+      const auto& cam = rec.cameras[static_cast<std::size_t>(f)];
+      if (cam.solved) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        T.linear() = cam.R_wc;
+        T.translation() = cam.p_wc;
+        renderer.clear();
+        renderer.drawLines(grid, T);
+        renderer.drawMesh(mesh, T);
+        renderer.composite(rgb.view());
+      }
+      if (!encoder.encodeRgb(reinterpret_cast<const uint8_t*>(rgb.view().data), width, height,
+                             rgb.view().stride * static_cast<std::ptrdiff_t>(sizeof(Rgb8)), 90,
+                             error) ||
+          !avi.addFrame(encoder.data(), encoder.size(), error)) {
+        fail(error.c_str());
+        return 1;
+      }
+      char name[32];
+      std::snprintf(name, sizeof(name), "/%06d.jpg", index);
+      if (!hal::writeFileAtomic(aug_dir + name, encoder.data(), encoder.size(), error)) {
+        fail(error.c_str());
+        return 1;
+      }
+      ++index;
+      ++f;
+      progress.update(f);
+    }
+    progress.end();
+    if (!avi.finish(error)) {
+      fail(error.c_str());
+      return 1;
+    }
+    clock.lap("rendering");
+  }
+
+  if (!io::writeAllOutputs(rec, o.out_dir, error)) {
+    fail(error.c_str());
+    return 1;
+  }
+  double mean = 0.0, median = 0.0;
+  io::reprojectionStatistics(rec, mean, median);
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "%s: %d/%d frames solved, focal %.2f px (%s%s), %zu points, reprojection mean "
+                "%.3f px, %.2f s; outputs in %s",
+                rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
+                rec.focal_source.c_str(), rec.focal_observable ? "" : ", not observable",
+                rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
+  if (o.progress != io::ProgressReporter::Mode::kQuiet)
+    std::fprintf(stderr, "epitrack-solve: %s\n", line);
+  if (!ok) {
+    std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace epitrack::tools

@@ -67,7 +67,7 @@ TriangulationResult triangulatePoint(std::span<const PoseCw> poses,
     const Eigen::Vector3d dx = H.ldlt().solve(-g);
     if (!dx.allFinite()) break;
     r.X += dx;
-    if (dx.norm() < 1e-12 * (1.0 + r.X.norm())) break;
+    if (dx.norm() < 1e-9 * (1.0 + r.X.norm())) break;  // far below any pixel
   }
   if (!r.X.allFinite()) return r;
   double max_angle = 0.0;

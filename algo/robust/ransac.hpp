@@ -61,6 +61,8 @@ class Ransac {
     int needed = options.max_iterations;
     double best_score = std::numeric_limits<double>::infinity();
     double best_raw = std::numeric_limits<double>::infinity();  // best score before LO
+    constexpr int kMaxExtraLo = 50;
+    int lo_runs = 0;
     int best_inliers = 0;
     bool found = false;
     int sample[Kernel::kMinSamples];
@@ -83,13 +85,18 @@ class Ransac {
           } else {
             score += t2;
           }
-          if (score >= best_raw && score >= best_score) break;  // cannot win any more
+          if (score >= best_raw && score >= best_score && lo_runs >= kMaxExtraLo)
+            break;  // cannot win any more
         }
-        // LO is tried when the raw minimal model beats every raw model so far: a clean but noisy
-        // sample scores worse than an optimised model, yet refits to the true one.
+        // LO is tried when the raw minimal model beats every raw model so far, or reaches half
+        // the best support (a bounded number of times): a clean but noisy sample scores worse
+        // than an optimised contaminated model, yet refits to the true one.
         const bool raw_record = score < best_raw;
         if (raw_record) best_raw = score;
-        if (raw_record || score < best_score) {
+        const bool promising =
+            lo_runs < kMaxExtraLo && inliers > Kernel::kMinSamples && 2 * inliers >= best_inliers;
+        if (!raw_record && promising && score >= best_score) ++lo_runs;
+        if (raw_record || promising || score < best_score) {
           if constexpr (requires(Model & mm) { kernel.localOptimize(mm, t2); }) {
             // LO-RANSAC (Chum, Matas & Kittler 2003): refit the new best model on its inliers,
             // which turns a noisy minimal sample into a model that sees all of its support.

@@ -128,6 +128,7 @@ void ShiTomasiDetector::computeResponse(ImageView<const uint8_t> image) {
 void ShiTomasiDetector::refine(float& x, float& y) const {
   const int rad = options_.subpixel_radius;
   const int lo = rad + 1;
+  const int dead = options_.subpixel_dead_zone;
   float cx = x;
   float cy = y;
   for (int it = 0; it < options_.subpixel_iterations; ++it) {
@@ -141,6 +142,9 @@ void ShiTomasiDetector::refine(float& x, float& y) const {
       const int16_t* gxr = dx_.row(iy + v);
       const int16_t* gyr = dy_.row(iy + v);
       for (int u = -rad; u <= rad; ++u) {
+        // Pixels next to the vertex mix both edges' gradients (OpenCV's cornerSubPix "zero
+        // zone"): they carry no line constraint and are left out.
+        if (std::abs(u) <= dead && std::abs(v) <= dead) continue;
         const double gx = gxr[ix + u];
         const double gy = gyr[ix + u];
         const double px = ix + u;
@@ -156,8 +160,8 @@ void ShiTomasiDetector::refine(float& x, float& y) const {
     if (!(det > 1e-6 * (gxx + gyy) * (gxx + gyy))) break;
     const double qx = (gyy * bx - gxy * by) / det;
     const double qy = (gxx * by - gxy * bx) / det;
-    if (!std::isfinite(qx) || !std::isfinite(qy) || std::abs(qx - static_cast<double>(x)) > 1.5 ||
-        std::abs(qy - static_cast<double>(y)) > 1.5) {
+    if (!std::isfinite(qx) || !std::isfinite(qy) || std::abs(qx - static_cast<double>(x)) > 3.0 ||
+        std::abs(qy - static_cast<double>(y)) > 3.0) {
       break;
     }
     const bool moved_cell = std::lround(qx) != ix || std::lround(qy) != iy;

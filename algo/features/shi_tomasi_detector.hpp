@@ -29,8 +29,9 @@ struct ShiTomasiOptions {
   double min_distance = 10.0;   ///< minimum distance between features (and to existing ones), px
   int border = 12;              ///< corners closer than this to the image edge are ignored
   bool subpixel = true;         ///< Foerstner refinement of each accepted corner
-  int subpixel_radius = 3;      ///< refinement window (2r+1)^2
-  int subpixel_iterations = 3;  ///< re-centring passes of the refinement
+  int subpixel_radius = 4;      ///< refinement window (2r+1)^2
+  int subpixel_dead_zone = 2;   ///< pixels within this (Chebyshev) distance of the centre unused
+  int subpixel_iterations = 5;  ///< re-centring passes of the refinement
 };
 
 /// Grid of cells of side min_distance holding up to kPerCell points each, so the minimum-distance

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
 namespace epitrack {
 
 const char* lkStatusName(LkStatus status) {
@@ -40,9 +43,19 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   grad_y_.reserve(std::max<std::size_t>(total, 1));
   levels_.assign(static_cast<std::size_t>(capacity_) * static_cast<std::size_t>(level_count_),
                  LevelTemplate{});
+  affine_.assign(static_cast<std::size_t>(capacity_), AffineTemplate{});
 }
 
 namespace {
+
+/// Root mean square of the error after removing its mean (the intensity offset), in gray levels,
+/// from the window sums of e and e^2 (e in 1/32 gray levels).
+double rmsAfterBias(int64_t sum_e, int64_t sum_sq, int area) {
+  const double n = area;
+  const double mean = static_cast<double>(sum_e) / n;
+  const double var = static_cast<double>(sum_sq) / n - mean * mean;
+  return std::sqrt(std::max(var, 0.0)) / static_cast<double>(1 << PyramidalLk::kValueBits);
+}
 
 /// Inverse of a symmetric 3x3 matrix by cofactors; false when (near) singular.
 bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
@@ -61,6 +74,44 @@ bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
 }
 
 }  // namespace
+
+void PyramidalLk::setAffineHessian(int slot) {
+  AffineTemplate& at = affine_[static_cast<std::size_t>(slot)];
+  at.valid = false;
+  if (!options_.affine) return;
+  const std::size_t base = patchIndex(slot, 0);
+  const int16_t* Sx = grad_x_.data() + base;
+  const int16_t* Sy = grad_y_.data() + base;
+  Eigen::Matrix<double, 7, 7> H = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Matrix<double, 7, 1> J;
+  for (int v = 0; v < side_; ++v) {
+    for (int u = 0; u < side_; ++u) {
+      const double gx = Sx[v * side_ + u];
+      const double gy = Sy[v * side_ + u];
+      const double du = u - half_;
+      const double dv = v - half_;
+      J << gx, gy, du * gx, dv * gx, du * gy, dv * gy, static_cast<double>(1 << kValueBits);
+      H.selfadjointView<Eigen::Lower>().rankUpdate(J);
+    }
+  }
+  H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
+  // Damping of the four shape parameters (Tikhonov, towards no change): at a corner whose edges
+  // pass through the centre, stretching along an edge is unobservable and an undamped step in
+  // that direction diverges. kShapeDamping of the curvature a fully textured window would have.
+  constexpr double kShapeDamping = 3.0;
+  const double lambda = kShapeDamping * 0.5 * (H(0, 0) + H(1, 1)) * (half_ * half_) / 3.0;
+  for (int i = 2; i < 6; ++i) H(i, i) += lambda;
+  const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;
+  const Eigen::Matrix<double, 7, 7> Hi = ldlt.solve(Eigen::Matrix<double, 7, 7>::Identity());
+  if (!Hi.allFinite()) return;
+  // Conditioning: a tiny pivot relative to the largest means an unobservable affine direction
+  // (an edge rather than a corner); such templates are tracked by translation only.
+  const auto d = ldlt.vectorD();
+  if (d.minCoeff() <= 1e-9 * d.maxCoeff()) return;
+  for (int i = 0; i < 49; ++i) at.H_inv[static_cast<std::size_t>(i)] = Hi(i % 7, i / 7);
+  at.valid = true;
+}
 
 LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, float y) {
   EPITRACK_ASSERT(slot >= 0 && slot < capacity_);
@@ -86,7 +137,7 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     int16_t* T = value_.data() + base;
     int16_t* Sx = grad_x_.data() + base;
     int16_t* Sy = grad_y_.data() + base;
-    double sxx = 0.0, sxy = 0.0, syy = 0.0, sx = 0.0, sy = 0.0;
+    double sxx = 0.0, sxy = 0.0, syy = 0.0, sx = 0.0, sy = 0.0, st = 0.0, stt = 0.0;
     for (int v = 0; v < side_; ++v) {
       const int yy = cy - half_ + v;
       const uint8_t* r0 = img.row(yy - 1);
@@ -101,6 +152,8 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
             3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
         const int i = v * side_ + u;
         T[i] = static_cast<int16_t>(r1[xx] << kValueBits);
+        st += r1[xx];
+        stt += r1[xx] * r1[xx];
         Sx[i] = static_cast<int16_t>(gx);
         Sy[i] = static_cast<int16_t>(gy);
         sxx += gx * gx;
@@ -113,6 +166,9 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     // Gauss-Newton Hessian of the residual e = I(W(x; p)) - T(x) - b over [dx, dy, b], with the
     // Jacobian row [Sx, Sy, 32] in the units of e (1/32 gray levels); Baker & Matthews 2004 eq. 36.
     const double n = static_cast<double>(area_);
+    // Contrast of the template (its intensity standard deviation): residuals are reported
+    // relative to it, so one threshold serves faint and strong corners (gain normalisation).
+    lt.contrast = std::sqrt(std::max(stt / n - (st / n) * (st / n), 1.0));
     const double one = static_cast<double>(1 << kValueBits);
     const double H[3][3] = {
         {sxx, sxy, one * sx}, {sxy, syy, one * sy}, {one * sx, one * sy, one * one * n}};
@@ -128,12 +184,14 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     lt.offset_x = px - cx;
     lt.offset_y = py - cy;
     lt.valid = true;
+    if (l == 0) setAffineHessian(slot);
   }
   return base_status;
 }
 
 LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> image, double& cx,
-                                 double& cy, double& residual, bool want_residual) const {
+                                 double& cy, double& bias_io, double& residual,
+                                 bool want_residual) const {
   const LevelTemplate& lt = levels_[static_cast<std::size_t>(slot * level_count_ + level)];
   const std::size_t base = patchIndex(slot, level);
   const int16_t* T = value_.data() + base;
@@ -144,7 +202,6 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   constexpr int kOne = 1 << kWeightBits;
   constexpr int kShift = kWeightBits - kValueBits;
   constexpr int kRound = 1 << (kShift - 1);
-  int32_t bias_fixed = 0;  // previous bias estimate in 1/32 gray levels (for the residual)
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
     const double fx_floor = std::floor(cx);
@@ -162,7 +219,7 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
     const int32_t w01 = (ax * (kOne - ay) + (kOne >> 1)) >> kWeightBits;
     const int32_t w10 = ((kOne - ax) * ay + (kOne >> 1)) >> kWeightBits;
     const int32_t w11 = kOne - w00 - w01 - w10;  // the four sum exactly to 1 << kWeightBits
-    int64_t gx_e = 0, gy_e = 0, sum_e = 0, sum_abs = 0;
+    int64_t gx_e = 0, gy_e = 0, sum_e = 0, sum_sq = 0;
     for (int v = 0; v < side_; ++v) {
       const uint8_t* r0 = image.row(iy - half_ + v) + (ix - half_);
       const uint8_t* r1 = r0 + image.stride;
@@ -170,7 +227,8 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
       const int16_t* sx = Sx + v * side_;
       const int16_t* sy = Sy + v * side_;
       // Per row in int32: |Sx| <= 4080, |e| <= 8160, 21 terms < 7e8 < 2^31.
-      int32_t row_gx = 0, row_gy = 0, row_e = 0, row_abs = 0;
+      int32_t row_gx = 0, row_gy = 0, row_e = 0;
+      int64_t row_sq = 0;
       for (int u = 0; u < side_; ++u) {
         const int32_t sample =
             (w00 * r0[u] + w01 * r0[u + 1] + w10 * r1[u] + w11 * r1[u + 1] + kRound) >> kShift;
@@ -178,13 +236,12 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
         row_gx += sx[u] * e;
         row_gy += sy[u] * e;
         row_e += e;
-        const int32_t eb = e - bias_fixed;
-        row_abs += eb < 0 ? -eb : eb;
+        row_sq += e * e;
       }
       gx_e += row_gx;
       gy_e += row_gy;
       sum_e += row_e;
-      sum_abs += row_abs;
+      sum_sq += row_sq;
     }
     const double g0 = static_cast<double>(gx_e);
     const double g1 = static_cast<double>(gy_e);
@@ -192,14 +249,11 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
     const double dx = Hi[0] * g0 + Hi[1] * g1 + Hi[2] * g2;
     const double dy = Hi[3] * g0 + Hi[4] * g1 + Hi[5] * g2;
     const double bias = Hi[6] * g0 + Hi[7] * g1 + Hi[8] * g2;  // gray levels
-    if (want_residual) {
-      residual = static_cast<double>(sum_abs) / (static_cast<double>(area_) * (1 << kValueBits));
-    }
+    if (want_residual) residual = rmsAfterBias(sum_e, sum_sq, area_);
     if (!std::isfinite(dx) || !std::isfinite(dy) || std::abs(dx) > half_ || std::abs(dy) > half_) {
       return LkStatus::kNoConvergence;
     }
-    bias_fixed =
-        static_cast<int32_t>(std::lround(std::clamp(bias, -255.0, 255.0) * (1 << kValueBits)));
+    bias_io = bias;
     // Inverse compositional update of a translation: W(x; p) <- W(x; p) o W(x; dp)^-1.
     cx -= dx;
     cy -= dy;
@@ -211,13 +265,142 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   return last_step2 < 0.01 ? LkStatus::kTracked : LkStatus::kNoConvergence;
 }
 
-LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y,
+LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, double& cx, double& cy,
+                                  double (&A)[4], double& bias, double& residual) const {
+  const AffineTemplate& at = affine_[static_cast<std::size_t>(slot)];
+  const std::size_t base = patchIndex(slot, 0);
+  const int16_t* T = value_.data() + base;
+  const int16_t* Sx = grad_x_.data() + base;
+  const int16_t* Sy = grad_y_.data() + base;
+  const auto& Hi = at.H_inv;
+  constexpr int kPosBits = 16;  // warped positions in 16.16 fixed point
+  constexpr int kOne = 1 << kWeightBits;
+  constexpr int kShift = kWeightBits - kValueBits;
+  constexpr int kRound = 1 << (kShift - 1);
+  constexpr double kPosOne = static_cast<double>(1 << kPosBits);
+  const double eps2 = options_.epsilon * options_.epsilon;
+  const double h = half_;
+  double last_step2 = 0.0;
+  for (int it = 0; it < options_.max_iterations; ++it) {
+    // The warped window's corners must stay inside the image (with the bilinear neighbour).
+    double min_x = 1e30, max_x = -1e30, min_y = 1e30, max_y = -1e30;
+    for (const double su : {-h, h}) {
+      for (const double sv : {-h, h}) {
+        const double wx = cx + A[0] * su + A[1] * sv;
+        const double wy = cy + A[2] * su + A[3] * sv;
+        min_x = std::min(min_x, wx);
+        max_x = std::max(max_x, wx);
+        min_y = std::min(min_y, wy);
+        max_y = std::max(max_y, wy);
+      }
+    }
+    if (!(min_x >= 0.0 && min_y >= 0.0 && max_x < image.width - 1 && max_y < image.height - 1)) {
+      return LkStatus::kLeftImage;
+    }
+    ++iterations_;
+    const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
+    const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
+    int64_t s_gx = 0, s_gy = 0, s_ugx = 0, s_vgx = 0, s_ugy = 0, s_vgy = 0, s_e = 0, s_sq = 0;
+    for (int v = 0; v < side_; ++v) {
+      const double dv = v - h;
+      auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
+      auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
+      const int16_t* t = T + v * side_;
+      const int16_t* sx = Sx + v * side_;
+      const int16_t* sy = Sy + v * side_;
+      int32_t row_gx = 0, row_gy = 0, row_e = 0;
+      int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
+      for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
+        const int ix = X >> kPosBits;
+        const int iy = Y >> kPosBits;
+        const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
+        const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
+        const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
+        const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
+        const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> kWeightBits;
+        const int32_t w11 = kOne - w00 - w01 - w10;
+        const uint8_t* r0 = image.row(iy) + ix;
+        const uint8_t* r1 = r0 + image.stride;
+        const int32_t sample =
+            (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
+        const int32_t e = sample - t[u];
+        const int32_t ge_x = sx[u] * e;
+        const int32_t ge_y = sy[u] * e;
+        row_gx += ge_x;
+        row_gy += ge_y;
+        row_ugx += static_cast<int64_t>(u - half_) * ge_x;
+        row_ugy += static_cast<int64_t>(u - half_) * ge_y;
+        row_e += e;
+        row_sq += e * e;
+      }
+      const int64_t iv = v - half_;
+      s_gx += row_gx;
+      s_gy += row_gy;
+      s_ugx += row_ugx;
+      s_ugy += row_ugy;
+      s_vgx += iv * row_gx;
+      s_vgy += iv * row_gy;
+      s_e += row_e;
+      s_sq += row_sq;
+    }
+    const double g[7] = {static_cast<double>(s_gx),
+                         static_cast<double>(s_gy),
+                         static_cast<double>(s_ugx),
+                         static_cast<double>(s_vgx),
+                         static_cast<double>(s_ugy),
+                         static_cast<double>(s_vgy),
+                         static_cast<double>(s_e) * (1 << kValueBits)};
+    double delta[7];
+    for (int r = 0; r < 7; ++r) {
+      double acc = 0.0;
+      for (int c = 0; c < 7; ++c) acc += Hi[static_cast<std::size_t>(r * 7 + c)] * g[c];
+      delta[r] = acc;
+    }
+    residual = rmsAfterBias(s_e, s_sq, area_);
+    bool finite = true;
+    for (const double d : delta) finite = finite && std::isfinite(d);
+    if (!finite || std::abs(delta[0]) > h || std::abs(delta[1]) > h)
+      return LkStatus::kNoConvergence;
+    bias = delta[6];
+    // Inverse composition (Baker & Matthews 2004 eq. 10): W <- W o W(delta)^-1 with
+    // W(k; delta) = (I + D) k + d, so A <- A (I + D)^-1 and t <- t - A (I + D)^-1 d.
+    const double m00 = 1.0 + delta[2], m01 = delta[3], m10 = delta[4], m11 = 1.0 + delta[5];
+    const double det = m00 * m11 - m01 * m10;
+    if (!(std::abs(det) > 1e-6)) return LkStatus::kNoConvergence;
+    const double i00 = m11 / det, i01 = -m01 / det, i10 = -m10 / det, i11 = m00 / det;
+    const double n00 = A[0] * i00 + A[1] * i10;
+    const double n01 = A[0] * i01 + A[1] * i11;
+    const double n10 = A[2] * i00 + A[3] * i10;
+    const double n11 = A[2] * i01 + A[3] * i11;
+    const double step_cx = n00 * delta[0] + n01 * delta[1];
+    const double step_cy = n10 * delta[0] + n11 * delta[1];
+    cx -= step_cx;
+    cy -= step_cy;
+    A[0] = n00;
+    A[1] = n01;
+    A[2] = n10;
+    A[3] = n11;
+    // Shape change in pixels at the window's edge; it converges more slowly than the position
+    // (damped, and poorly observed at corners) and matters less, so it gets a 10x looser bound.
+    const double shape_step =
+        h * (std::abs(delta[2]) + std::abs(delta[3]) + std::abs(delta[4]) + std::abs(delta[5]));
+    last_step2 = step_cx * step_cx + step_cy * step_cy;
+    if (last_step2 < eps2 && shape_step < 10.0 * options_.epsilon) break;
+  }
+  const double a_det = A[0] * A[3] - A[1] * A[2];
+  if (!(a_det > 0.25 && a_det < 4.0)) return LkStatus::kNoConvergence;
+  return last_step2 < 0.01 ? LkStatus::kTracked : LkStatus::kNoConvergence;
+}
+
+LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
                             float& residual) const {
   EPITRACK_ASSERT(slot >= 0 && slot < capacity_);
   const int levels = std::min(level_count_, pyramid.levelCount());
   double px = x;
   double py = y;
   double res = 0.0;
+  double A[4] = {shape.a00, shape.a01, shape.a10, shape.a11};
+  double bias = 0.0;  // intensity offset, carried from coarse to fine
   for (int l = levels - 1; l >= 0; --l) {
     const LevelTemplate& lt = levels_[static_cast<std::size_t>(slot * level_count_ + l)];
     if (!lt.valid) {
@@ -225,19 +408,43 @@ LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y
       continue;
     }
     const double scale = static_cast<double>(1 << l);
-    double cx = px / scale - lt.offset_x;
-    double cy = py / scale - lt.offset_y;
-    const LkStatus s = alignLevel(slot, l, pyramid.level(l), cx, cy, res, l == 0);
+    // Feature = template centre + A * offset (the offset is in template coordinates).
+    const double ox = A[0] * lt.offset_x + A[1] * lt.offset_y;
+    const double oy = A[2] * lt.offset_x + A[3] * lt.offset_y;
+    double cx = px / scale - ox;
+    double cy = py / scale - oy;
+    LkStatus s = LkStatus::kTracked;
+    if (l == 0 && affine_[static_cast<std::size_t>(slot)].valid) {
+      s = alignAffine(slot, pyramid.level(0), cx, cy, A, bias, res);
+      if (s != LkStatus::kTracked) {
+        // The shape estimate diverged (an unobservable direction): fall back to translation
+        // with the template's identity shape from the same start.
+        A[0] = 1.0;
+        A[1] = 0.0;
+        A[2] = 0.0;
+        A[3] = 1.0;
+        cx = px - lt.offset_x;
+        cy = py - lt.offset_y;
+        s = alignLevel(slot, 0, pyramid.level(0), cx, cy, bias, res, true);
+      }
+    } else {
+      s = alignLevel(slot, l, pyramid.level(l), cx, cy, bias, res, l == 0);
+    }
     if (s != LkStatus::kTracked) {
       if (l == 0) return s;
       continue;  // a coarse level that fails leaves the guess to the finer levels
     }
-    px = (cx + lt.offset_x) * scale;
-    py = (cy + lt.offset_y) * scale;
+    const double nox = A[0] * lt.offset_x + A[1] * lt.offset_y;
+    const double noy = A[2] * lt.offset_x + A[3] * lt.offset_y;
+    px = (cx + nox) * scale;
+    py = (cy + noy) * scale;
   }
   x = static_cast<float>(px);
   y = static_cast<float>(py);
-  residual = static_cast<float>(res);
+  shape = PatchShape{static_cast<float>(A[0]), static_cast<float>(A[1]), static_cast<float>(A[2]),
+                     static_cast<float>(A[3])};
+  residual =
+      static_cast<float>(res / levels_[static_cast<std::size_t>(slot * level_count_)].contrast);
   return res > options_.max_residual ? LkStatus::kResidualTooHigh : LkStatus::kTracked;
 }
 

@@ -21,13 +21,23 @@ enum class LkStatus : uint8_t {
 };
 const char* lkStatusName(LkStatus status);
 
+/// The linear part of the affine warp from a feature's template to the current image
+/// (identity when the template was just taken).
+struct PatchShape {
+  float a00 = 1.0f;
+  float a01 = 0.0f;
+  float a10 = 0.0f;
+  float a11 = 1.0f;
+};
+
 struct LkOptions {
   int window = 21;            ///< odd window side in pixels (Bouguet 2000: 2w+1)
   int levels = 3;             ///< pyramid levels beyond the base
   int max_iterations = 10;    ///< per level
   double epsilon = 0.01;      ///< stop when the update is smaller than this (pixels of the level)
   double min_eigen = 4.0;     ///< minimum eigenvalue of the mean gradient matrix, (gray/px)^2
-  double max_residual = 1e9;  ///< kResidualTooHigh beyond this mean |error| (gray levels)
+  double max_residual = 1e9;  ///< kResidualTooHigh beyond this relative residual (see align)
+  bool affine = true;         ///< base level: affine warp + bias instead of translation + bias
 };
 
 /// Pyramidal Lucas-Kanade tracking of translation plus an intensity offset (bias), after
@@ -60,8 +70,17 @@ class PyramidalLk {
 
   /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
   /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and
-  /// `residual` the mean absolute error at the base level after removing the bias (gray levels).
-  LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, float& residual) const;
+  /// `residual` the RMS error at the base level after removing the intensity offset, divided by
+  /// the template's intensity standard deviation (0: identical; about 1.4: unrelated patches).
+  LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, float& residual) const {
+    PatchShape shape;
+    return align(slot, pyramid, x, y, shape, residual);
+  }
+  /// As above, with the affine shape of the template in the image (in: the previous frame's,
+  /// out: the aligned one). The base level estimates an affine warp (Baker & Matthews 2004 §2-3,
+  /// inverse compositional with a bias term); coarser levels a translation.
+  LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
+                 float& residual) const;
 
   [[nodiscard]] const LkOptions& options() const { return options_; }
   [[nodiscard]] int capacity() const { return capacity_; }
@@ -74,6 +93,7 @@ class PyramidalLk {
     double offset_x = 0.0;  ///< feature position minus the template's integer centre (level px)
     double offset_y = 0.0;
     bool valid = false;
+    double contrast = 1.0;  ///< standard deviation of the template intensities (gray levels)
     std::array<double, 9> H_inv{};  ///< inverse of the 3x3 Gauss-Newton Hessian (x, y, bias)
   };
   [[nodiscard]] std::size_t patchIndex(int slot, int level) const {
@@ -81,9 +101,14 @@ class PyramidalLk {
             static_cast<std::size_t>(level)) *
            static_cast<std::size_t>(area_);
   }
+  void setAffineHessian(int slot);
+  /// Affine inverse-compositional iterations on the base level: (cx, cy) the template centre in
+  /// the image and A its shape, updated in place.
+  LkStatus alignAffine(int slot, ImageView<const uint8_t> image, double& cx, double& cy,
+                       double (&A)[4], double& bias, double& residual) const;
   /// Iterates on one level; (cx, cy) is the template centre in level pixels, updated in place.
   LkStatus alignLevel(int slot, int level, ImageView<const uint8_t> image, double& cx, double& cy,
-                      double& residual, bool want_residual) const;
+                      double& bias, double& residual, bool want_residual) const;
 
   LkOptions options_;
   int capacity_ = 0;
@@ -95,6 +120,11 @@ class PyramidalLk {
   AlignedBuffer<int16_t> grad_x_;  // Scharr (unnormalised, 32 x intensity per pixel)
   AlignedBuffer<int16_t> grad_y_;
   std::vector<LevelTemplate> levels_;  // sized at construction
+  struct AffineTemplate {
+    bool valid = false;
+    std::array<double, 49> H_inv{};  ///< inverse 7x7 Hessian over (dx, dy, d00, d01, d10, d11, b)
+  };
+  std::vector<AffineTemplate> affine_;  // one per slot (base level)
   mutable long iterations_ = 0;
 };
 

@@ -23,6 +23,7 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   l.max_iterations = o.max_iterations;
   l.epsilon = o.epsilon;
   l.min_eigen = o.min_eigen;
+  l.affine = o.affine;
   return l;
 }
 
@@ -42,7 +43,8 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
   options_.levels = std::clamp(options_.levels, 0, Pyramid::kMaxLevels - 1);
   if (width > 0 && height > 0) pyramid_.configure(width, height, options_.levels + 1);
   const auto n = static_cast<std::size_t>(options_.max_features);
-  tracks_.assign(n, Track{0, 0, 0.0f, 0.0f, 0.0f, false, KalmanFilterCv(options_.kalman)});
+  tracks_.assign(
+      n, Track{0, 0, 0.0f, 0.0f, 0.0f, false, PatchShape{}, KalmanFilterCv(options_.kalman)});
   live_points_.resize(n);
   corners_.resize(n);
   output_.resize(n);
@@ -71,6 +73,7 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
     t.x = c.x;
     t.y = c.y;
     t.residual = 0.0f;
+    t.shape = PatchShape{};
     t.live = true;
     t.kalman.init(c.x, c.y);
     ++live_count_;
@@ -103,10 +106,16 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
         y = static_cast<float>(t.kalman.y());
       }
       float residual = 0.0f;
-      const LkStatus st = lk_.align(static_cast<int>(s), pyramid_, x, y, residual);
+      PatchShape shape = t.shape;
+      const LkStatus st = lk_.align(static_cast<int>(s), pyramid_, x, y, shape, residual);
       const double res = static_cast<double>(residual);
       bool keep = st == LkStatus::kTracked;
-      if (!keep) ++stats_.lost_lk;
+      if (!keep) {
+        ++stats_.lost_lk;
+        stats_.lost_left_image += st == LkStatus::kLeftImage ? 1 : 0;
+        stats_.lost_no_convergence += st == LkStatus::kNoConvergence ? 1 : 0;
+        stats_.lost_low_texture += st == LkStatus::kLowTexture ? 1 : 0;
+      }
       if (keep && (res > options_.max_residual ||
                    res > static_cast<double>(t.residual) + options_.max_residual_jump)) {
         keep = false;
@@ -137,11 +146,13 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
       t.y = y;
       ++t.age;
       t.residual = residual;
+      t.shape = shape;
       if (res > options_.refresh_residual) {
         // Appearance drifted (perspective change): restart the template here. Costs one
         // re-sampling error, instead of one per frame as frame-to-frame tracking does.
         if (lk_.setTemplate(static_cast<int>(s), pyramid_, x, y) == LkStatus::kTracked) {
           t.residual = 0.0f;
+          t.shape = PatchShape{};
           ++stats_.refreshed;
         } else {
           t.live = false;

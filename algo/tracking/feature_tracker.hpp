@@ -31,11 +31,15 @@ struct FeatureTrackerOptions {
   bool kalman_gate = true;         ///< reject LK measurements outside the Kalman chi-square gate
   bool forward_backward = false;   ///< reserved: align back into the previous frame (not yet used)
   int max_iterations = 10;         ///< LK iterations per level
+  bool affine = true;              ///< base level: affine template warp (else translation only)
   double epsilon = 0.01;           ///< LK convergence, px
   double min_eigen = 4.0;          ///< LK texture threshold, (gray/px)^2 per pixel
-  double refresh_residual = 5.0;   ///< take a new template when the residual exceeds this (gray)
-  double max_residual = 12.0;      ///< drop the track beyond this residual (occlusion), gray
-  double max_residual_jump = 4.0;  ///< drop when the residual grows by more than this in a frame
+  // Residuals are relative: RMS error after the intensity offset / template contrast (see
+  // PyramidalLk::align). With the affine template the residual stays small while the point is
+  // visible; occlusion or sliding onto other structure raises it.
+  double refresh_residual = 1e9;    ///< take a new template beyond this (off by default: drifts)
+  double max_residual = 0.5;        ///< drop the track beyond this residual (occlusion)
+  double max_residual_jump = 0.15;  ///< drop when the residual grows by more than this in a frame
   KalmanCvOptions kalman{};
 };
 
@@ -46,7 +50,10 @@ struct FrameStats {
   double kalman_ms = 0.0;
   double detect_ms = 0.0;
   int tracked = 0;
-  int lost_lk = 0;
+  int lost_lk = 0;  ///< all LK losses; by reason:
+  int lost_left_image = 0;
+  int lost_no_convergence = 0;
+  int lost_low_texture = 0;
   int lost_gate = 0;
   int lost_residual = 0;
   int lost_mask = 0;
@@ -87,6 +94,7 @@ class FeatureTracker {
     float y = 0.0f;
     float residual = 0.0f;
     bool live = false;
+    PatchShape shape;
     KalmanFilterCv kalman;
   };
   void detect(ImageView<const uint8_t> mask);

@@ -17,6 +17,9 @@ namespace epitrack::test {
 struct RenderedClip {
   std::vector<Image<uint8_t>> frames;
   std::vector<std::vector<synth::LandmarkObservation>> landmarks;  // per frame
+  /// Per frame, parallel to `landmarks`: 1 when the corner is well conditioned for sub-pixel
+  /// localisation (its texture cells span >= 9 px on screen, its edges >= 45 degrees apart).
+  std::vector<std::vector<uint8_t>> well_conditioned;
 };
 
 /// Renders `options` (all frames) with its landmarks.

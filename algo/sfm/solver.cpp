@@ -69,8 +69,9 @@ PoseCw fromBa(const BaCamera& c) {
 
 Solver::Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options)
     : tracks_(tracks), width_(width), height_(height), options_(options) {
-  cx_ = (width - 1) * 0.5;
-  cy_ = (height - 1) * 0.5;
+  cx_ = options.has_principal_point ? options.cx : (width - 1) * 0.5;
+  cy_ = options.has_principal_point ? options.cy : (height - 1) * 0.5;
+  aspect_ = options.aspect > 0.0 ? options.aspect : 1.0;
   k1_ = options.k1;
   k2_ = options.k2;
   frames_.assign(static_cast<std::size_t>(tracks.frameCount()), SolvedFrame{});
@@ -79,7 +80,7 @@ Solver::Solver(const TrackTable& tracks, int width, int height, const SolverOpti
 }
 
 Eigen::Vector2d Solver::normalized(const TrackObservation& o) const {
-  Eigen::Vector2d d((o.x - cx_) / f_, (o.y - cy_) / f_);
+  Eigen::Vector2d d((o.x - cx_) / f_, (o.y - cy_) / (f_ * aspect_));
   if (k1_ == 0.0 && k2_ == 0.0) return d;
   // Invert x_d = x_u (1 + k1 r^2 + k2 r^4) by fixed-point iteration (converges for the mild
   // distortion of ordinary lenses).
@@ -235,7 +236,7 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
     gric_ratio = sel.gric_h / std::max(1.0, sel.gric_f);
   }
   Eigen::Matrix3d K;
-  K << f_, 0, cx_, 0, f_, cy_, 0, 0, 1;
+  K << f_, 0, cx_, 0, f_ * aspect_, cy_, 0, 0, 1;
   // Distortion is applied through `normalized`; E from F in pixels ignores it (refined below).
   const Eigen::Matrix3d E = essentialFromFundamental(f.F, K, K);
   RelativePoseResult rp;
@@ -545,7 +546,7 @@ void Solver::adjust(bool global) {
   bo.refine_focal = global && ((focal_source_ == "self-calibrated") ||
                                (focal_source_ == "given" && options_.refine_given_focal));
   bo.refine_distortion = global ? options_.refine_distortion : 0;
-  BaIntrinsics k{f_, 1.0, cx_, cy_, k1_, k2_};
+  BaIntrinsics k{f_, aspect_, cx_, cy_, k1_, k2_};
   ba.solve(cams, cam_fixed, pts, {}, obs, k, bo);
   if (!std::isfinite(k.f) || k.f <= 0.0) return;
   f_ = k.f;
@@ -675,7 +676,7 @@ bool Solver::tripodSolve() {
     focal_observable_ = true;
   }
   Eigen::Matrix3d K;
-  K << f_, 0, cx_, 0, f_, cy_, 0, 0, 1;
+  K << f_, 0, cx_, 0, f_ * aspect_, cy_, 0, 0, 1;
   const Eigen::Matrix3d Kinv = K.inverse();
   int max_obs = 0;
   for (int f = 0; f < n; ++f)

@@ -15,6 +15,11 @@ namespace epitrack {
 struct SolverOptions {
   double focal_px = 0.0;      ///< > 0: the focal is given (and kept unless refine_given_focal)
   double k1 = 0.0, k2 = 0.0;  ///< given radial distortion
+  /// Given principal point and pixel aspect (fy / fx); by default the image centre and square
+  /// pixels, the model of the self-calibration (paper §5.2).
+  bool has_principal_point = false;
+  double cx = 0.0, cy = 0.0;
+  double aspect = 1.0;
   int refine_distortion = 0;  ///< 0 none, 1 k1, 2 k1 and k2 (estimated in the final adjustment)
   bool refine_given_focal = false;
   double fallback_focal_widths =
@@ -91,6 +96,7 @@ class Solver {
   [[nodiscard]] double k2() const { return k2_; }
   [[nodiscard]] double cx() const { return cx_; }
   [[nodiscard]] double cy() const { return cy_; }
+  [[nodiscard]] double aspect() const { return aspect_; }
   [[nodiscard]] const std::string& focalSource() const { return focal_source_; }
   [[nodiscard]] bool focalObservable() const { return focal_observable_; }
   [[nodiscard]] const std::string& motion() const { return motion_; }
@@ -118,7 +124,7 @@ class Solver {
   const TrackTable& tracks_;
   int width_, height_;
   SolverOptions options_;
-  double f_ = 0.0, cx_ = 0.0, cy_ = 0.0, k1_ = 0.0, k2_ = 0.0;
+  double f_ = 0.0, cx_ = 0.0, cy_ = 0.0, k1_ = 0.0, k2_ = 0.0, aspect_ = 1.0;
   std::string focal_source_ = "given";
   bool focal_observable_ = true;
   std::string motion_ = "general";

@@ -79,6 +79,10 @@ int runSolve(const SolveCommandOptions& o) {
     }
     have_given = true;
     so.focal_px = given.fx;
+    so.has_principal_point = true;
+    so.cx = given.cx;
+    so.cy = given.cy;
+    so.aspect = given.fy / given.fx;
     so.k1 = given.k1;
     so.k2 = given.k2;
   } else if (o.focal_px > 0.0) {
@@ -195,10 +199,9 @@ int runSolve(const SolveCommandOptions& o) {
 
   // --- reconstruction ------------------------------------------------------------------------
   rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
-  if (have_given) {
-    rec.intrinsics.cx = given.cx;  // reported as given; the solver assumes the centre
-    rec.intrinsics.cy = given.cy;
-  }
+  rec.intrinsics.cx = solver.cx();
+  rec.intrinsics.cy = solver.cy();
+  rec.intrinsics.fy = solver.focal() * solver.aspect();
   rec.intrinsics.k1 = solver.k1();
   rec.intrinsics.k2 = solver.k2();
   rec.frames = frames;

@@ -11,6 +11,7 @@
 #include "hal/replay/image_directory_source.hpp"
 #include "hal/replay/mjpeg_source.hpp"
 #include "hal/replay/y4m_source.hpp"
+#include "hal/v4l2/v4l2_capture_source.hpp"
 
 namespace epitrack::hal {
 
@@ -63,8 +64,7 @@ std::unique_ptr<FrameSource> openFrameSource(const std::string& input, const Sou
     return nullptr;
   }
   if (input.compare(0, 5, "v4l2:") == 0) {
-    error = "V4L2 capture is not built yet";
-    return nullptr;
+    return openV4l2Source(input, linuxV4l2Syscalls(), options, error);
   }
   if (input == "-") return checked(std::make_unique<Y4mSource>(input, options), error);
   if (isDirectory(input))

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -25,6 +26,11 @@ struct Frame {
   ImageView<const uint8_t> luma;
   int64_t index = -1;
   double timestamp_s = 0.0;
+  /// The compressed JPEG this frame was decoded from, when the source delivers JPEG (MJPEG replay,
+  /// V4L2 MJPEG); nullptr otherwise. Valid until the next `next` call. A recorder writes these
+  /// bytes unchanged so that a recording replays bit-identically.
+  const uint8_t* encoded = nullptr;
+  std::size_t encoded_size = 0;
 };
 
 struct SourceInfo {

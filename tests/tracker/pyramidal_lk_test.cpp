@@ -73,7 +73,7 @@ TEST_CASE("Pyramidal LK recovers known translations, with a brightness offset", 
       REQUIRE(st == LkStatus::kTracked);
       CHECK(std::abs(static_cast<double>(x - x0) - tx) < 0.05);
       CHECK(std::abs(static_cast<double>(y - y0) - ty) < 0.05);
-      CHECK(residual < 2.0f);
+      CHECK(residual < 0.1f);
     }
   }
 }
@@ -107,14 +107,16 @@ TEST_CASE("Affine LK follows rotation and scale of the patch", "[tracker][lk]") 
   float y = static_cast<float>(y0);
   float residual = 0.0f;
   PatchShape shape;
-  REQUIRE(lk.align(0, pb, x, y, shape, residual) == LkStatus::kTracked);
+  // The damped shape converges over successive calls (as over frames in the tracker).
+  for (int pass = 0; pass < 4; ++pass)
+    REQUIRE(lk.align(0, pb, x, y, shape, residual) == LkStatus::kTracked);
   INFO("expected " << ex << "," << ey << " got " << x << "," << y << " shape " << shape.a00 << " "
                    << shape.a01 << " " << shape.a10 << " " << shape.a11);
   CHECK(std::abs(static_cast<double>(x) - ex) < 0.05);
   CHECK(std::abs(static_cast<double>(y) - ey) < 0.05);
   CHECK(std::abs(static_cast<double>(shape.a00) - scale * std::cos(rot)) < 0.01);
   CHECK(std::abs(static_cast<double>(shape.a10) - scale * std::sin(rot)) < 0.01);
-  CHECK(residual < 2.0f);
+  CHECK(residual < 0.1f);
 }
 
 TEST_CASE("LK reports features that leave the image or have no texture", "[tracker][lk]") {

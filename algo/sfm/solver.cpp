@@ -135,18 +135,28 @@ bool Solver::calibrate() {
   std::vector<int> f_pair_index;
   // Pairs (i, j): j the first frame after i whose common tracks moved by a median of 8 % of the
   // width (enough parallax to condition F), stepping i so that about 40 pairs cover the clip.
+  // Forward motion moves the central tracks little: when no later frame reaches 8 %, the frame
+  // of largest displacement still makes a pair if it reaches kMinPairMotion.
+  constexpr double kTargetMotion = 0.08, kMinPairMotion = 0.03;
   const int step = std::max(1, n / 40);
   bool any_motion = false;
   for (int i = 0; i + 1 < n; i += step) {
-    int j = -1;
+    int j = -1, best_k = -1;
+    double best_d = 0.0;
     for (int k = i + 1; k < n; ++k) {
       const int c = commonTracks(i, k, &x1, &x2);
       if (c < 30) break;
-      if (displacement(x1, x2) >= 0.08 * width_) {
+      const double d = displacement(x1, x2);
+      if (d > best_d) {
+        best_d = d;
+        best_k = k;
+      }
+      if (d >= kTargetMotion * width_) {
         j = k;
         break;
       }
     }
+    if (j < 0 && best_d >= kMinPairMotion * width_) j = best_k;
     if (j < 0) continue;
     any_motion = true;
     commonTracks(i, j, &x1, &x2);
@@ -168,7 +178,7 @@ bool Solver::calibrate() {
   if (!any_motion) {
     status_ = Status::kNoMotion;
     message_ =
-        "the tracks never move by 8 % of the image width (80th percentile): no parallax to "
+        "the tracks never move by 3 % of the image width (80th percentile): no parallax to "
         "reconstruct from";
     return false;
   }
@@ -308,12 +318,10 @@ bool Solver::initialize() {
   const int a_step = std::max(1, a_span / 6);
   for (int a = 0; a < n && a <= a_span; a += a_step) {
     const double targets[] = {0.04, 0.08, 0.14, 0.24};
-    int t = 0;
-    for (int b = a + 1; b < n && t < 4; ++b) {
-      const int c = commonTracks(a, b, &x1, &x2);
-      if (c < 30) break;
-      if (displacement(x1, x2) < targets[t] * width_) continue;
-      ++t;
+    int t = 0, last_tried = -1, widest = -1;
+    double widest_d = 0.0;
+    const auto consider = [&](int b) {
+      last_tried = b;
       double score = 0.0;
       PoseCw pose;
       if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
@@ -324,7 +332,21 @@ bool Solver::initialize() {
         init_a_ = a;
         init_b_ = b;
       }
+    };
+    for (int b = a + 1; b < n && t < 4; ++b) {
+      const int c = commonTracks(a, b, &x1, &x2);
+      if (c < 30) break;
+      const double d = displacement(x1, x2);
+      if (d > widest_d) {
+        widest_d = d;
+        widest = b;
+      }
+      if (d < targets[t] * width_) continue;
+      ++t;
+      consider(b);
     }
+    // Short or forward motions may not reach every target: the widest baseline is a candidate.
+    if (t < 4 && widest > 0 && widest != last_tried && widest_d >= 0.02 * width_) consider(widest);
   }
   if (best_score <= 0.0 && rotation_coherent) {
     tripodSolve();

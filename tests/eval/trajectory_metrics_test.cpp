@@ -143,6 +143,39 @@ TEST_CASE("A rotation error shows in rot_err_deg_mean", "[eval]") {
   REQUIRE(m.rot_err_deg_max == Approx(1.0).epsilon(1e-6));
 }
 
+TEST_CASE("A tripod or straight-line track is aligned by the camera orientations", "[eval]") {
+  // A straight line (the centres leave the rotation about it free) and a tripod (all centres at
+  // one point): a rotated copy must score zero rotation error once aligned by orientations.
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.3, -0.8, 0.5).normalized()).toRotationMatrix();
+  for (const bool tripod : {false, true}) {
+    auto gt = lineTrajectory(20);
+    if (tripod)
+      for (auto& e : gt) e.position.setZero();
+    const auto est = transformed(gt, 2.0, R, Eigen::Vector3d(1.0, 2.0, 3.0));
+    eval::TrajectoryMetrics m;
+    std::string err;
+    REQUIRE(eval::evaluateTrajectory(gt, est, 1e-6, m, err));
+    CHECK_FALSE(m.aligned);
+    CHECK(m.rot_err_deg_mean < 1e-6);
+    CHECK(m.rot_err_deg_max < 1e-6);
+    CHECK(m.ate_rmse < 1e-9);
+    if (!tripod) CHECK(m.scale == Approx(0.5).epsilon(1e-9));
+  }
+  // One frame's orientation 3 degrees off: the mean over 20 frames stays near 3/20.
+  auto gt = lineTrajectory(20);
+  for (auto& e : gt) e.position.setZero();
+  auto est = transformed(gt, 1.0, R, Eigen::Vector3d::Zero());
+  est[7].rotation =
+      Eigen::Quaterniond(est[7].rotation.toRotationMatrix() *
+                         Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()));
+  eval::TrajectoryMetrics m;
+  std::string err;
+  REQUIRE(eval::evaluateTrajectory(gt, est, 1e-6, m, err));
+  CHECK(m.rot_err_deg_max == Approx(2.85).margin(0.01));
+  CHECK(m.rot_err_deg_mean == Approx(0.285).margin(0.005));
+}
+
 TEST_CASE("epitrack-eval prints the contract's JSON fields and rejects bad input", "[eval][cli]") {
   epitrack::test::TempDir dir("eval");
   std::string err;

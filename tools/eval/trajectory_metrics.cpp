@@ -111,8 +111,17 @@ bool evaluateTrajectory(const std::vector<hal::TrajectoryEntry>& gt,
       nd += (dst[i] - md).norm();
     }
     S.s = ns > 0.0 ? nd / ns : 1.0;
-    S.R.setIdentity();
-    S.t = md - S.s * ms;
+    // The centres do not fix the rotation (a tripod, a straight line): take it from the camera
+    // orientations instead, the chordal mean of R_gt,i R_est,iᵀ projected onto SO(3).
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    for (const auto& [g, e] : pairs)
+      M += g->rotation.toRotationMatrix() * e->rotation.toRotationMatrix().transpose();
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+    if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
+    S.R = svd.matrixU() * D * svd.matrixV().transpose();
+    if (!S.R.allFinite()) S.R.setIdentity();
+    S.t = md - S.s * S.R * ms;
   }
   m.scale = S.s;
   double sq = 0.0;

@@ -350,7 +350,8 @@ int runSolve(const SolveCommandOptions& o) {
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   if (!ok) {
     std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());
-    return 1;
+    // A tripod solve is a result (every camera's rotation and the focal), not a failure.
+    return solver.status() == Solver::Status::kRotationOnly ? 0 : 1;
   }
   return 0;
 }

@@ -154,12 +154,21 @@ FocalFromMatches estimateFocalFromMatches(std::span<const Eigen::Vector2d> x1,
                                           const FocalSearchOptions& options) {
   FocalFromMatches r;
   FundamentalResult fr;
-  if (f_ransac.estimate(x1, x2, f_options, fr) != FundamentalRansac::Status::kOk) return r;
-  r.F = fr.F;
+  const bool have_f = f_ransac.estimate(x1, x2, f_options, fr) == FundamentalRansac::Status::kOk;
   HomographyResult hr;
   HomographyOptions ho;
   ho.ransac.threshold = f_options.ransac.threshold * std::sqrt(2.0);
-  if (h_ransac.estimate(x1, x2, ho, hr) == HomographyRansac::Status::kOk) {
+  const bool have_h = h_ransac.estimate(x1, x2, ho, hr) == HomographyRansac::Status::kOk;
+  if (!have_f) {
+    // F is degenerate on a plane or under pure rotation; a homography still classifies the pair.
+    if (have_h) {
+      r.H = hr.H;
+      r.model = PairModel::kHomography;
+    }
+    return r;
+  }
+  r.F = fr.F;
+  if (have_h) {
     r.H = hr.H;
     const auto sel = selectTwoViewModel(fr.F, hr.H, x1, x2, sigma_px, fr.mask, hr.mask);
     if (sel.model == TwoViewModel::kHomography) {

@@ -140,12 +140,14 @@ bool Solver::calibrate() {
   constexpr double kTargetMotion = 0.08, kMinPairMotion = 0.03;
   const int step = std::max(1, n / 40);
   bool any_motion = false;
+  int longest_span = 0;  // frames over which 30 tracks persisted
   for (int i = 0; i + 1 < n; i += step) {
     int j = -1, best_k = -1;
     double best_d = 0.0;
     for (int k = i + 1; k < n; ++k) {
       const int c = commonTracks(i, k, &x1, &x2);
       if (c < 30) break;
+      longest_span = std::max(longest_span, k - i);
       const double d = displacement(x1, x2);
       if (d > best_d) {
         best_d = d;
@@ -175,6 +177,13 @@ bool Solver::calibrate() {
   }
   int homography_pairs = 0;
   for (const auto& p : pair_focals_) homography_pairs += p.homography ? 1 : 0;
+  if (!any_motion && longest_span < std::min(3, n - 1)) {
+    status_ = Status::kTooFewFeatures;
+    message_ = "features are not tracked from frame to frame (fewer than 30 tracks survive " +
+               std::to_string(std::min(3, n - 1)) +
+               " frames): noise, heavy blur, cuts or a frame rate too low for the motion";
+    return false;
+  }
   if (!any_motion) {
     status_ = Status::kNoMotion;
     message_ =
@@ -306,6 +315,17 @@ bool Solver::initialize() {
       focal_source_ = "self-calibrated";
       focal_observable_ = true;
     }
+  }
+  // Homographies that are not rotations: a single plane (or a scene so distant it acts as one).
+  // Any focal then explains the views equally well (paper §5.2 needs F), so a solve with a guessed
+  // focal would be silently distorted: say so instead.
+  if (motion_ == "rotation-or-plane" && !rotation_coherent && options_.focal_px <= 0.0 &&
+      !focal_observable_) {
+    status_ = Status::kPlanarScene;
+    message_ =
+        "the scene is a single plane (every frame pair fits a homography that is not a "
+        "rotation): the focal length cannot be self-calibrated; give --focal or --intrinsics";
+    return false;
   }
   // Candidate first frames spread over the first fifth of the clip, candidate partners at several
   // gaps measured by parallax (median displacement 10-40 % of the width).

@@ -101,7 +101,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
       float x = t.x;
       float y = t.y;
       if (options_.kalman_gate) {
-        t.kalman.predict();
+        t.kalman.predict(1.0 + static_cast<double>(skipped_frames_));
         x = static_cast<float>(t.kalman.x());
         y = static_cast<float>(t.kalman.y());
       }
@@ -185,6 +185,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   }
   stats_.tracked = output_count_;
   ++frame_index_;
+  skipped_frames_ = 0;
   return Status::kOk;
 }
 

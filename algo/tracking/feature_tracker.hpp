@@ -76,6 +76,9 @@ class FeatureTracker {
 
   /// Processes the next frame. `mask`: empty, or the frame size with 0 = never track here.
   Status track(ImageView<const uint8_t> frame, ImageView<const uint8_t> mask = {});
+  /// The input lost `count` frames (corrupt, dropped) before the next `track` call: the Kalman
+  /// prediction then spans 1 + count frame intervals instead of one.
+  void skipFrames(int count) { skipped_frames_ += count > 0 ? count : 0; }
 
   /// Live tracks after the last frame (valid until the next `track`).
   [[nodiscard]] std::span<const TrackedFeature> features() const {
@@ -113,6 +116,7 @@ class FeatureTracker {
   int live_count_ = 0;
   int32_t next_id_ = 0;
   int frame_index_ = 0;
+  int skipped_frames_ = 0;  ///< frames lost since the last track() call
   int frames_since_detect_ = 0;
   FrameStats stats_;
 };

@@ -121,6 +121,7 @@ std::string formatSummaryJson(const Reconstruction& rec) {
   j.field("status", rec.status);
   if (!rec.message.empty()) j.field("message", rec.message);
   j.field("frames", rec.frames);
+  j.field("skipped_frames", rec.skipped_frames);
   j.field("solved_frames", solved);
   j.field("keyframes", keyframes);
   j.field("focal_px", k.fx);

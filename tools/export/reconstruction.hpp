@@ -79,6 +79,7 @@ struct Reconstruction {
   std::vector<ScenePoint> points;     ///< ids unique
   std::vector<PointObservation> observations;
   int frames = 0;               ///< frames in the clip (>= cameras.size() of solved ones)
+  int skipped_frames = 0;       ///< corrupt or missing frames skipped while reading the input
   bool has_timestamps = false;  ///< cameras.tum uses SolvedCamera::timestamp instead of the index
 
   std::string focal_source = "given";  ///< "given", "self-calibrated" or "fallback"

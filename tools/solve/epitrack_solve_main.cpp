@@ -77,6 +77,9 @@ int main(int argc, char** argv) {
     }
     return true;
   });
+  cl.real("max-memory", "MIB",
+          "refuse a clip whose buffers would need more than this (default 4096 MiB)",
+          &o.max_memory_mib, 16.0, 1e7);
   cl.flag("quiet", "no progress on stderr", &quiet);
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);

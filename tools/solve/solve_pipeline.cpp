@@ -62,6 +62,18 @@ uint8_t grayAt(ImageView<const uint8_t> img, double x, double y) {
 
 }  // namespace
 
+double estimateSolveMemoryBytes(int width, int height, int max_features, int window, long frames) {
+  const double pixels = static_cast<double>(width) * static_cast<double>(height);
+  // Frame (1 B/px) + pyramid (4/3 B/px) + Scharr gradients of a level (2 x 2 B/px) + detector
+  // response and masks (~6 B/px); per feature, the LK templates of every level.
+  const double per_frame = pixels * (1.0 + 4.0 / 3.0 + 4.0 + 6.0);
+  const double templates =
+      static_cast<double>(max_features) * 4.0 * static_cast<double>(window * window) * 8.0;
+  const double track_table = static_cast<double>(frames) * static_cast<double>(max_features) *
+                             static_cast<double>(sizeof(TrackObservation) + 8);
+  return per_frame + templates + track_table;
+}
+
 int runSolve(const SolveCommandOptions& o) {
   io::ProgressReporter progress(o.progress);
   io::Reconstruction rec;
@@ -116,22 +128,43 @@ int runSolve(const SolveCommandOptions& o) {
   const bool keep_frames = o.render != "none" && o.input == "-";  // stdin cannot be re-read
   std::vector<Image<uint8_t>> kept;
   int width = 0, height = 0, frames = 0, skipped = 0;
+  std::string input_error;  // why reading stopped before the end of the stream, if it did
   hal::Frame frame;
   for (;;) {
     const hal::FrameStatus st = source->next(frame);
     if (st == hal::FrameStatus::kEndOfStream) break;
     if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
       ++skipped;
+      if (tracker) tracker->skipFrames(1);
       progress.message("skipping frame: " + source->lastError());
       continue;
     }
     if (st != hal::FrameStatus::kOk) {
-      fail(source->lastError().c_str());
-      return 1;
+      if (frames == 0) {
+        fail(source->lastError().c_str());
+        return 1;
+      }
+      // The frames read so far are solved and written; the run still exits 1.
+      input_error = source->lastError();
+      progress.message("input stopped: " + input_error + "; solving the " + std::to_string(frames) +
+                       " frames before it");
+      break;
     }
     if (!tracker) {
       width = frame.luma.width;
       height = frame.luma.height;
+      const double need = estimateSolveMemoryBytes(width, height, o.tracker.max_features,
+                                                   o.tracker.window, std::max<long>(expected, 1));
+      if (need > o.max_memory_mib * 1024.0 * 1024.0) {
+        char msg[256];
+        std::snprintf(msg, sizeof(msg),
+                      "a %dx%d clip of %ld frames needs about %.0f MiB, above the limit of %.0f "
+                      "MiB (--max-memory)",
+                      width, height, std::max<long>(expected, 1), need / (1024.0 * 1024.0),
+                      o.max_memory_mib);
+        fail(msg);
+        return 1;
+      }
       tracker = std::make_unique<FeatureTracker>(o.tracker, width, height);
       tracks.reserve(expected > 0 ? static_cast<int>(expected) : 1024,
                      static_cast<std::size_t>(std::max<long>(expected, 1024)) *
@@ -143,12 +176,12 @@ int runSolve(const SolveCommandOptions& o) {
       return 2;
     }
     if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
-      const std::string msg = "frame " + std::to_string(frame.index) + " is " +
-                              std::to_string(frame.luma.width) + "x" +
-                              std::to_string(frame.luma.height) + ", the clip started at " +
-                              std::to_string(width) + "x" + std::to_string(height);
-      fail(msg.c_str());
-      return 1;
+      input_error = "frame " + std::to_string(frame.index) + " is " +
+                    std::to_string(frame.luma.width) + "x" + std::to_string(frame.luma.height) +
+                    ", the clip started at " + std::to_string(width) + "x" + std::to_string(height);
+      progress.message("input stopped: " + input_error + "; solving the " + std::to_string(frames) +
+                       " frames before it");
+      break;
     }
     const auto live = tracker->features();
     for (const auto& f : live) {
@@ -205,11 +238,15 @@ int runSolve(const SolveCommandOptions& o) {
   rec.intrinsics.k1 = solver.k1();
   rec.intrinsics.k2 = solver.k2();
   rec.frames = frames;
+  rec.skipped_frames = skipped;
   rec.focal_source = solver.focalSource();
   rec.focal_observable = solver.focalObservable();
   rec.motion = solver.motion();
   rec.status = toString(solver.status());
   rec.message = solver.message();
+  if (!input_error.empty())
+    rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
+                  (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
   for (const auto& p : solver.pairFocals()) {
     if (!p.observable) continue;
@@ -348,6 +385,10 @@ int runSolve(const SolveCommandOptions& o) {
                 rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
   if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
+  if (!input_error.empty()) {
+    std::fprintf(stderr, "epitrack-solve: input stopped early: %s\n", input_error.c_str());
+    return 1;
+  }
   if (!ok) {
     std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());
     // A tripod solve is a result (every camera's rotation and the focal), not a failure.

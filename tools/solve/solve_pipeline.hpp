@@ -29,7 +29,13 @@ struct SolveCommandOptions {
   FeatureTrackerOptions tracker;
   SolverOptions solver;
   io::ProgressReporter::Mode progress = io::ProgressReporter::Mode::kAuto;
+  double max_memory_mib = 4096.0;  ///< refuse inputs whose buffers would need more (--max-memory)
 };
+
+/// Bytes the solve reserves up front for a clip of this size: the tracker's frame, pyramid,
+/// gradient and template buffers plus the track table for `frames` frames (a lower bound of
+/// the peak; the solver's own state is small beside it).
+double estimateSolveMemoryBytes(int width, int height, int max_features, int window, long frames);
 
 /// Runs the whole solve and writes every output. Returns the process exit code (0 solved, 1 a
 /// runtime failure, with summary.json saying why whenever the clip could be read).

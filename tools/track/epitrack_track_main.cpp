@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
     if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
       if (!quiet)
         std::fprintf(stderr, "epitrack-track: skipping frame: %s\n", source->lastError().c_str());
+      if (tracker) tracker->skipFrames(1);
       continue;
     }
     if (st != hal::FrameStatus::kOk) {

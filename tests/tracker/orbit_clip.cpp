@@ -70,7 +70,11 @@ const RenderedClip& orbitClip() {
 
 RenderedClip addNoise(const RenderedClip& clip, double sigma, uint64_t seed) {
   RenderedClip out;
+  // GCC 12 for aarch64 reports a false -Wnull-dereference inside the inlined vector copy.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wnull-dereference"
   out.landmarks = clip.landmarks;
+#pragma GCC diagnostic pop
   out.well_conditioned = clip.well_conditioned;
   out.frames.resize(clip.frames.size());
   for (std::size_t f = 0; f < clip.frames.size(); ++f) {

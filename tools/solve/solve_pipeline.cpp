@@ -20,6 +20,7 @@
 #include "tools/export/reprojection_errors.hpp"
 #include "tools/render/avi_writer.hpp"
 #include "tools/render/overlay_renderer.hpp"
+#include "tools/render/report_writer.hpp"
 
 namespace epitrack::tools {
 
@@ -254,6 +255,9 @@ int runSolve(const SolveCommandOptions& o) {
   clock.lap("scene_frame");
 
   // --- augmented frames ----------------------------------------------------------------------
+  render::ReportOptions report;  // report.html, written with the other outputs
+  report.input = o.input;
+  report.render_object = o.render;
   if (o.render != "none" && solver.solvedFrames() > 0) {
     const std::string aug_dir = o.out_dir + "/augmented";
     if (!hal::makeDirectories(aug_dir, error)) {
@@ -330,9 +334,20 @@ int runSolve(const SolveCommandOptions& o) {
       fail(error.c_str());
       return 1;
     }
+    for (int i = 0; i < index; ++i) {
+      char rel[40];
+      std::snprintf(rel, sizeof(rel), "augmented/%06d.jpg", i);
+      report.augmented_frames.emplace_back(i, rel);
+    }
+    report.video = "augmented.avi";
     clock.lap("rendering");
   }
 
+  // report.html before the exports: summary.json stays the last file written.
+  if (!render::writeReportHtml(rec, report, o.out_dir + "/report.html", error)) {
+    fail(error.c_str());
+    return 1;
+  }
   if (!io::writeAllOutputs(rec, o.out_dir, error)) {
     fail(error.c_str());
     return 1;

@@ -21,6 +21,7 @@
 #include "algo/geometry/pose.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "hal/io/file_util.hpp"
+#include "hal/io/image_codec.hpp"
 #include "hal/io/text_formats.hpp"
 #include "tests/support/test_support.hpp"
 #include "tools/render/overlay_renderer.hpp"
@@ -78,7 +79,7 @@ TEST_CASE("solved synthetic clip: the object's anchor stays on its true projecti
   REQUIRE(epitrack::test::run(synth) == 0);
   const std::string solve = epitrack::test::binaryPath("tools/solve/epitrack-solve") + " '" +
                             dir.file("frames") + "' --out '" + dir.file("solve") +
-                            "' --quiet >/dev/null 2>&1";
+                            "' --quiet --render towers --overlay tracks >/dev/null 2>&1";
   REQUIRE(epitrack::test::run(solve) == 0);
 
   std::string error;
@@ -175,4 +176,42 @@ TEST_CASE("solved synthetic clip: the object's anchor stays on its true projecti
   std::printf("rendered cube centroid drift over %d frames: mean %.3f px\n", drawn_frames,
               centroid_mean);
   CHECK(centroid_mean < 0.5);
+
+  // The outputs of the same run (--render towers --overlay tracks): 60 side-by-side frames of
+  // 960x360 in augmented/ and augmented.avi, and the report linking them.
+  std::vector<uint8_t> avi;
+  REQUIRE(epitrack::hal::readFileInto(dir.file("solve/augmented.avi"), avi, error));
+  REQUIRE(avi.size() > 80);
+  const auto le32 = [&](std::size_t at) {
+    return static_cast<uint32_t>(avi[at]) | static_cast<uint32_t>(avi[at + 1]) << 8 |
+           static_cast<uint32_t>(avi[at + 2]) << 16 | static_cast<uint32_t>(avi[at + 3]) << 24;
+  };
+  CHECK(le32(48) == 60);   // avih dwTotalFrames
+  CHECK(le32(64) == 960);  // avih dwWidth
+  CHECK(le32(68) == 360);  // avih dwHeight
+  epitrack::hal::GrayImageDecoder decoder;
+  epitrack::Image<uint8_t> augmented, input;
+  REQUIRE(decoder.decodeFile(dir.file("solve/augmented/000059.jpg"), augmented, error));
+  REQUIRE(decoder.decodeFile(dir.file("frames/000059.pgm"), input, error));
+  REQUIRE(augmented.width() == 960);
+  REQUIRE(augmented.height() == 360);
+  // Both halves are the input frame with something drawn on it: most pixels within JPEG noise of
+  // the input, a few hundred (towers and grid; tracks) clearly changed.
+  int changed[2] = {0, 0}, kept[2] = {0, 0};
+  for (int y = 0; y < 360; ++y)
+    for (int x = 0; x < 960; ++x) {
+      const int d = std::abs(augmented.view()(x, y) - input.view()(x % 480, y));
+      (d > 40 ? changed : kept)[x / 480] += 1;
+    }
+  std::printf("augmented frame 59: %d / %d pixels changed (towers, grid / tracks)\n", changed[0],
+              changed[1]);
+  for (int half = 0; half < 2; ++half) {
+    CHECK(changed[half] > 300);
+    CHECK(kept[half] > 480 * 360 * 8 / 10);
+  }
+  std::string html;
+  REQUIRE(epitrack::hal::readTextFile(dir.file("solve/report.html"), html, error));
+  CHECK(html.find("src=\"augmented/000059.jpg\"") != std::string::npos);
+  CHECK(html.find("href=\"augmented.avi\"") != std::string::npos);
+  CHECK(html.find("data-key=\"focal_source\">self-calibrated<") != std::string::npos);
 }

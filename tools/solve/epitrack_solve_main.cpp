@@ -56,6 +56,10 @@ int main(int argc, char** argv) {
           &o.origin_text);
   cl.choice("render", {"towers", "cube", "axes", "none"},
             "virtual object rendered into DIR/augmented (default none)", &o.render);
+  cl.choice("overlay", {"tracks", "none"},
+            "tracks: augmented frames side by side with the tracked features (green: fit the "
+            "solve, orange: outliers, red: no 3D point); default none",
+            &o.overlay);
   cl.option("object-at", "X,Y,Z", "where the object stands in the scene frame (default 0,0,0)",
             [&](const std::string& v, std::string& e) { return parseVector(v, o.object_at, e); });
   cl.real("object-scale", "S", "object size factor (default 1)", &o.object_scale, 1e-6, 1e6);

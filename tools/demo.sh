@@ -9,6 +9,8 @@
 #     EPITRACK_DEMO_OUT      output folder (default build/demo)
 #     EPITRACK_DEMO_RENDER   towers | cube | axes (default towers)
 #     EPITRACK_DEMO_FRAMES   frames of the synthetic clip (default 150)
+#     EPITRACK_DEMO_SEED     scene layout of the synthetic clip (default 1)
+#     EPITRACK_DEMO_JOBS     parallel build jobs (default: every core)
 #     EPITRACK_DEMO_ARGS     extra epitrack-solve options, e.g. "--object-at 0.2,0,0 --object-scale 2"
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -16,13 +18,15 @@ build=$root/build/release
 out=${EPITRACK_DEMO_OUT:-$root/build/demo}
 render=${EPITRACK_DEMO_RENDER:-towers}
 frames=${EPITRACK_DEMO_FRAMES:-150}
+seed=${EPITRACK_DEMO_SEED:-1}
+jobs=${EPITRACK_DEMO_JOBS:-$(nproc)}
 input=${1:-}
 
 echo "demo: checking packages ..."
 "$root/tools/deps.sh" base
 echo "demo: building Release in $build ..."
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DEPITRACK_BUILD_TESTS=OFF >/dev/null
-cmake --build "$build" -j "$(nproc)" >/dev/null
+cmake --build "$build" -j "$jobs" >/dev/null
 bin=$build/tools
 
 mkdir -p "$out"
@@ -32,7 +36,7 @@ if [ -z "$input" ]; then
   echo "demo: rendering a synthetic handheld clip (704x576, $frames frames, true focal 600 px) ..."
   rm -rf "$out/clip"
   "$bin/synth/epitrack-synth" --scene handheld --frames "$frames" --size 704x576 --focal 600 \
-    --seed 7 --out "$out/clip" 2>/dev/null
+    --seed "$seed" --out "$out/clip" 2>/dev/null
   input=$out/clip/frames
 fi
 
@@ -43,7 +47,7 @@ solve_rc=0
 "$bin/solve/epitrack-solve" "$input" --out "$out/solve" --render "$render" \
   ${EPITRACK_DEMO_ARGS:-} || solve_rc=$?
 
-if [ "$synthetic" = 1 ] && [ -f "$out/solve/cameras.tum" ] && [ -s "$out/solve/cameras.tum" ]; then
+if [ "$synthetic" = 1 ] && [ "$solve_rc" -eq 0 ]; then
   echo "demo: accuracy against the synthetic ground truth (epitrack-eval):"
   "$bin/eval/epitrack-eval" --gt "$out/clip/groundtruth.txt" --est "$out/solve/cameras.tum" \
     --gt-intrinsics "$out/clip/intrinsics.txt" --est-intrinsics "$out/solve/intrinsics.txt" |

@@ -121,6 +121,8 @@ TEST_CASE("report has every section with balanced markup", "[render][report]") {
     options.augmented_frames.emplace_back(f, name);
   }
   options.video = "augmented.avi";
+  options.has_object = true;
+  options.object_at = Eigen::Vector3d(0.25, -0.5, 0.0);
   const std::string html = formatReportHtml(rec, options);
 
   for (const char* id :
@@ -151,6 +153,8 @@ TEST_CASE("report has every section with balanced markup", "[render][report]") {
   CHECK(html.find("src=\"augmented/000000.jpg\"") != std::string::npos);
   CHECK(html.find("src=\"augmented/000039.jpg\"") != std::string::npos);
   CHECK(html.find("href=\"augmented.avi\"") != std::string::npos);
+  // The object's ground position in the top view.
+  CHECK(html.find("data-series=\"object\" data-values=\"0.25 -0.5\"") != std::string::npos);
 }
 
 TEST_CASE("report figures equal the reconstruction's", "[render][report]") {
@@ -237,6 +241,7 @@ TEST_CASE("report figures equal the reconstruction's", "[render][report]") {
     ++k;
   }
   CHECK(html.find("data-series=\"points\" data-count=\"60\"") != std::string::npos);
+  CHECK(html.find("data-series=\"object\"") == std::string::npos);  // no object, no marker
   // Without augmented frames the strip says how to get them.
   CHECK(html.find("No augmented frames") != std::string::npos);
 }

@@ -398,7 +398,7 @@ std::string focalSection(const io::Reconstruction& rec) {
   return figure("focal", "Focal estimates per frame pair", svg, caption);
 }
 
-std::string topViewSection(const io::Reconstruction& rec) {
+std::string topViewSection(const io::Reconstruction& rec, const ReportOptions& options) {
   // Scene frame: with a ground plane z is up, so the top view is the x-y plane; the first-camera
   // frame keeps the camera axes (y down), so its top view is x-z.
   const bool z_up = rec.plane_found;
@@ -472,11 +472,19 @@ std::string topViewSection(const io::Reconstruction& rec) {
            "\" r=\"5\"><title>last solved camera</title></circle>";
   }
   svg += "</g>\n";
+  if (options.has_object && options.object_at.allFinite()) {
+    const double ox = X(u(options.object_at)), oy = Y(v(options.object_at));
+    svg += "<g data-series=\"object\" data-values=\"" + dataNumber(u(options.object_at)) + " " +
+           dataNumber(v(options.object_at)) + "\"><rect class=\"object\" x=\"" + px(ox - 5) +
+           "\" y=\"" + px(oy - 5) + "\" width=\"10\" height=\"10\"><title>virtual object (" +
+           escapeHtml(options.render_object) + ")</title></rect></g>\n";
+  }
   return figure("top-view", "Top view: camera path and point cloud", svg,
                 std::string("Seen from above in the scene frame (") +
                     (z_up ? "x-y plane, z up" : "x-z plane of the first camera") + "): " +
                     std::to_string(cu.size()) + " camera centres (green start, red end) over " +
-                    std::to_string(pu.size()) + " points (central 96% framed).");
+                    std::to_string(pu.size()) + " points (central 96% framed)" +
+                    (options.has_object ? "; the orange square is the virtual object" : "") + ".");
 }
 
 std::string stripSection(const ReportOptions& options) {
@@ -518,6 +526,7 @@ svg .chosen { stroke: #c0392b; stroke-width: 1.5; stroke-dasharray: 6 4; }
 svg .coherent { fill: #27ae60; } svg .outlier { fill: #e67e22; }
 svg .path { fill: none; stroke: #2471a3; stroke-width: 2; }
 svg .start { fill: #27ae60; } svg .end { fill: #c0392b; }
+svg .object { fill: #e67e22; stroke: #7e3f0a; stroke-width: 1.5; }
 svg .axis-u { stroke: #c0392b; stroke-width: 2; } svg .axis-v { stroke: #27ae60; stroke-width: 2; }
 svg .scalebar { stroke: #222; stroke-width: 3; }
 .strip { display: grid; grid-template-columns: repeat(3, 1fr); gap: 8px; }
@@ -568,7 +577,7 @@ std::string formatReportHtml(const io::Reconstruction& rec, const ReportOptions&
   h += trackLengthSection(rec);
   h += focalSection(rec);
   h += "</div>\n";
-  h += topViewSection(rec);
+  h += topViewSection(rec, options);
   h += stripSection(options);
   h += "</body>\n</html>\n";
   return h;

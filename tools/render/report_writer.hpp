@@ -19,6 +19,8 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "tools/export/reconstruction.hpp"
 
 namespace epitrack::render {
@@ -32,6 +34,9 @@ struct ReportOptions {
   std::vector<std::pair<int64_t, std::string>> augmented_frames;
   int strip_frames = 6;
   std::string video;  ///< relative path of the augmented video (a link), may be empty
+  /// Where the virtual object stands (scene frame), marked in the top view when set.
+  bool has_object = false;
+  Eigen::Vector3d object_at = Eigen::Vector3d::Zero();
 };
 
 /// Track length (solved-frame observations) of every scene point with at least one observation,

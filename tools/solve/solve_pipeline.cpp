@@ -265,6 +265,8 @@ int runSolve(const SolveCommandOptions& o) {
   render::ReportOptions report;  // report.html, written with the other outputs
   report.input = o.input;
   report.render_object = o.render;
+  report.has_object = o.render != "none";
+  report.object_at = o.object_at;
   if (draw_frames && solver.solvedFrames() > 0) {
     const std::string aug_dir = o.out_dir + "/augmented";
     if (!hal::makeDirectories(aug_dir, error)) {

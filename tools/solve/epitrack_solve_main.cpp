@@ -36,8 +36,8 @@ int main(int argc, char** argv) {
       "epitrack-solve", "INPUT --out DIR [options]",
       "Tracks INPUT, self-calibrates the focal length (unless given), reconstructs the camera\n"
       "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
-      "summary.json, colmap/, blender_camera.py, camera.chan and, with --render, the augmented\n"
-      "frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
+      "summary.json, report.html, colmap/, blender_camera.py, camera.chan and, with --render\n"
+      "or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
       "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.");
   cl.positional("INPUT", "frames to solve", &o.input);
   cl.text("out", "DIR", "output directory (created)", &o.out_dir);

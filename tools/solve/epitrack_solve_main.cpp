@@ -36,8 +36,8 @@ int main(int argc, char** argv) {
       "epitrack-solve", "INPUT --out DIR [options]",
       "Tracks INPUT, self-calibrates the focal length (unless given), reconstructs the camera\n"
       "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
-      "summary.json, colmap/, blender_camera.py, camera.chan and, with --render, the augmented\n"
-      "frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
+      "summary.json, report.html, colmap/, blender_camera.py, camera.chan and, with --render\n"
+      "or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
       "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.");
   cl.positional("INPUT", "frames to solve", &o.input);
   cl.text("out", "DIR", "output directory (created)", &o.out_dir);
@@ -56,6 +56,10 @@ int main(int argc, char** argv) {
           &o.origin_text);
   cl.choice("render", {"towers", "cube", "axes", "none"},
             "virtual object rendered into DIR/augmented (default none)", &o.render);
+  cl.choice("overlay", {"tracks", "none"},
+            "tracks: augmented frames side by side with the tracked features (green: fit the "
+            "solve, orange: outliers, red: no 3D point); default none",
+            &o.overlay);
   cl.option("object-at", "X,Y,Z", "where the object stands in the scene frame (default 0,0,0)",
             [&](const std::string& v, std::string& e) { return parseVector(v, o.object_at, e); });
   cl.real("object-scale", "S", "object size factor (default 1)", &o.object_scale, 1e-6, 1e6);

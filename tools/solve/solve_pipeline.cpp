@@ -20,6 +20,8 @@
 #include "tools/export/reprojection_errors.hpp"
 #include "tools/render/avi_writer.hpp"
 #include "tools/render/overlay_renderer.hpp"
+#include "tools/render/report_writer.hpp"
+#include "tools/render/track_overlay.hpp"
 
 namespace epitrack::tools {
 
@@ -125,7 +127,8 @@ int runSolve(const SolveCommandOptions& o) {
   std::unordered_map<int64_t, uint8_t> track_gray;
   std::vector<int> features_per_frame;
   std::vector<double> timestamps;
-  const bool keep_frames = o.render != "none" && o.input == "-";  // stdin cannot be re-read
+  const bool draw_frames = o.render != "none" || o.overlay == "tracks";
+  const bool keep_frames = draw_frames && o.input == "-";  // stdin cannot be re-read
   std::vector<Image<uint8_t>> kept;
   int width = 0, height = 0, frames = 0, skipped = 0;
   std::string input_error;  // why reading stopped before the end of the stream, if it did
@@ -278,20 +281,30 @@ int runSolve(const SolveCommandOptions& o) {
     rec.points.push_back(sp);
     point_valid[static_cast<std::size_t>(p.track)] = 1;
   }
-  for (const auto& ob : tracks.observations()) {
+  // rec_observation[i]: index into rec.observations of tracks.observations()[i], -1 when left out.
+  std::vector<int> rec_observation(tracks.observations().size(), -1);
+  for (std::size_t i = 0; i < tracks.observations().size(); ++i) {
+    const auto& ob = tracks.observations()[i];
     if (!point_valid[static_cast<std::size_t>(ob.track)]) continue;
     if (!solver.frames()[static_cast<std::size_t>(ob.frame)].solved) continue;
+    rec_observation[i] = static_cast<int>(rec.observations.size());
     rec.observations.push_back({ob.frame, tracks.trackId(ob.track), ob.x, ob.y});
   }
   if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly) {
     const auto sf = io::applySceneFrame(rec, o.scene);
     (void)sf;
   }
-  io::computeReprojectionErrors(rec, 2.0 * so.reproj_threshold_px);
+  const double outlier_px = 2.0 * so.reproj_threshold_px;
+  io::computeReprojectionErrors(rec, outlier_px);
   clock.lap("scene_frame");
 
   // --- augmented frames ----------------------------------------------------------------------
-  if (o.render != "none" && solver.solvedFrames() > 0) {
+  render::ReportOptions report;  // report.html, written with the other outputs
+  report.input = o.input;
+  report.render_object = o.render;
+  report.has_object = o.render != "none";
+  report.object_at = o.object_at;
+  if (draw_frames && solver.solvedFrames() > 0) {
     const std::string aug_dir = o.out_dir + "/augmented";
     if (!hal::makeDirectories(aug_dir, error)) {
       fail(error.c_str());
@@ -308,13 +321,33 @@ int runSolve(const SolveCommandOptions& o) {
     OverlayRenderer renderer(rec.intrinsics);
     const Mesh mesh = o.render == "towers" ? makeTowers(o.object_at, o.object_scale)
                       : o.render == "cube" ? makeCube(o.object_at, o.object_scale)
-                                           : makeAxes(o.object_at, o.object_scale);
-    const LineSet grid = makeGroundGrid(o.object_at, 1.0 * o.object_scale, 0.25 * o.object_scale);
+                      : o.render == "axes" ? makeAxes(o.object_at, o.object_scale)
+                                           : Mesh{};
+    const LineSet grid = o.render == "none" ? LineSet{}
+                                            : makeGroundGrid(o.object_at, 1.0 * o.object_scale,
+                                                             0.25 * o.object_scale);
     Image<Rgb8> rgb(width, height);
+    // --overlay tracks: the tracked features on the right, each observation classified by its
+    // reprojection error in the exported model (the threshold of the report's statistics).
+    const bool with_tracks = o.overlay == "tracks";
+    std::vector<render::TrackKind> kinds;
+    Image<Rgb8> panel, both;
+    if (with_tracks) {
+      kinds.assign(tracks.observations().size(), render::TrackKind::kUnused);
+      for (std::size_t i = 0; i < kinds.size(); ++i) {
+        if (rec_observation[i] < 0) continue;
+        const double r = rec.observations[static_cast<std::size_t>(rec_observation[i])].residual_px;
+        if (std::isfinite(r))
+          kinds[i] = r <= outlier_px ? render::TrackKind::kInlier : render::TrackKind::kOutlier;
+      }
+      panel.allocate(width, height);
+      both.allocate(2 * width, height);
+    }
+    const int out_width = with_tracks ? 2 * width : width;
     hal::JpegEncoder encoder;
     MjpegAviWriter avi;
     const double fps = source->info().fps > 0.0 ? source->info().fps : 30.0;
-    if (!avi.open(o.out_dir + "/augmented.avi", width, height, fps, error)) {
+    if (!avi.open(o.out_dir + "/augmented.avi", out_width, height, fps, error)) {
       fail(error.c_str());
       return 1;
     }
@@ -335,8 +368,9 @@ int runSolve(const SolveCommandOptions& o) {
           const uint8_t v = luma(x, y);
           rgb.view()(x, y) = Rgb8{v, v, v};
         }
+      if (with_tracks) copyPixels<Rgb8>(rgb.constView(), panel.view());
       const auto& cam = rec.cameras[static_cast<std::size_t>(f)];
-      if (cam.solved) {
+      if (cam.solved && (!mesh.triangles.empty() || !grid.from.empty())) {
         Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
         T.linear() = cam.R_wc;
         T.translation() = cam.p_wc;
@@ -345,9 +379,14 @@ int runSolve(const SolveCommandOptions& o) {
         renderer.drawMesh(mesh, T);
         renderer.composite(rgb.view());
       }
-      if (!encoder.encodeRgb(reinterpret_cast<const uint8_t*>(rgb.view().data), width, height,
-                             rgb.view().stride * static_cast<std::ptrdiff_t>(sizeof(Rgb8)), 90,
-                             error) ||
+      ImageView<const Rgb8> out = rgb.constView();
+      if (with_tracks) {
+        render::drawTracks(panel.view(), tracks, kinds, f);
+        render::sideBySide(rgb.constView(), panel.constView(), both.view());
+        out = both.constView();
+      }
+      if (!encoder.encodeRgb(reinterpret_cast<const uint8_t*>(out.data), out.width, out.height,
+                             out.stride * static_cast<std::ptrdiff_t>(sizeof(Rgb8)), 90, error) ||
           !avi.addFrame(encoder.data(), encoder.size(), error)) {
         fail(error.c_str());
         return 1;
@@ -367,9 +406,20 @@ int runSolve(const SolveCommandOptions& o) {
       fail(error.c_str());
       return 1;
     }
+    for (int i = 0; i < index; ++i) {
+      char rel[40];
+      std::snprintf(rel, sizeof(rel), "augmented/%06d.jpg", i);
+      report.augmented_frames.emplace_back(i, rel);
+    }
+    report.video = "augmented.avi";
     clock.lap("rendering");
   }
 
+  // report.html before the exports: summary.json stays the last file written.
+  if (!render::writeReportHtml(rec, report, o.out_dir + "/report.html", error)) {
+    fail(error.c_str());
+    return 1;
+  }
   if (!io::writeAllOutputs(rec, o.out_dir, error)) {
     fail(error.c_str());
     return 1;

@@ -23,7 +23,8 @@ struct SolveCommandOptions {
   int distortion = 0;           ///< 0 none, 1 k1, 2 k1k2 (estimated)
   SceneFrameOptions scene;      ///< --origin (defaults tuned in the constructor)
   std::string origin_text = "plane";
-  std::string render = "none";  ///< towers | cube | axes | none
+  std::string render = "none";   ///< towers | cube | axes | none
+  std::string overlay = "none";  ///< tracks: augmented frames side by side with the 2D tracks
   Eigen::Vector3d object_at = Eigen::Vector3d::Zero();
   double object_scale = 1.0;
   FeatureTrackerOptions tracker;

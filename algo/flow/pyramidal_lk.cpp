@@ -198,7 +198,9 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   const int16_t* Sx = grad_x_.data() + base;
   const int16_t* Sy = grad_y_.data() + base;
   const auto& Hi = lt.H_inv;
-  const double eps2 = options_.epsilon * options_.epsilon;
+  // Coarse levels only need to land in the finer level's basin: a 4x looser bound.
+  const double eps = level > 0 ? 4.0 * options_.epsilon : options_.epsilon;
+  const double eps2 = eps * eps;
   constexpr int kOne = 1 << kWeightBits;
   constexpr int kShift = kWeightBits - kValueBits;
   constexpr int kRound = 1 << (kShift - 1);
@@ -393,7 +395,7 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
 }
 
 LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
-                            float& residual) const {
+                            float& residual, int start_level) const {
   EPITRACK_ASSERT(slot >= 0 && slot < capacity_);
   const int levels = std::min(level_count_, pyramid.levelCount());
   double px = x;
@@ -401,7 +403,7 @@ LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y
   double res = 0.0;
   double A[4] = {shape.a00, shape.a01, shape.a10, shape.a11};
   double bias = 0.0;  // intensity offset, carried from coarse to fine
-  for (int l = levels - 1; l >= 0; --l) {
+  for (int l = std::min(levels - 1, std::max(start_level, 0)); l >= 0; --l) {
     const LevelTemplate& lt = levels_[static_cast<std::size_t>(slot * level_count_ + l)];
     if (!lt.valid) {
       if (l == 0) return LkStatus::kLowTexture;

@@ -79,8 +79,10 @@ class PyramidalLk {
   /// As above, with the affine shape of the template in the image (in: the previous frame's,
   /// out: the aligned one). The base level estimates an affine warp (Baker & Matthews 2004 §2-3,
   /// inverse compositional with a bias term); coarser levels a translation.
+  /// `start_level` (default: the coarsest) lets a caller with a good prediction (a Kalman filter)
+  /// skip the coarse levels.
   LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
-                 float& residual) const;
+                 float& residual, int start_level = kMaxLevels) const;
 
   [[nodiscard]] const LkOptions& options() const { return options_; }
   [[nodiscard]] int capacity() const { return capacity_; }

@@ -1,8 +1,8 @@
 #include "algo/tracking/feature_tracker.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <ctime>
 
 namespace epitrack {
 namespace {
@@ -27,8 +27,12 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   return l;
 }
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+// Stage times are processor time of the process (std::clock): on a shared machine they measure
+// the work, not the waiting for a core. The tracker runs on the calling thread only.
+using StageClock = std::clock_t;
+StageClock stageNow() { return std::clock(); }
+double msSince(StageClock t0) {
+  return 1000.0 * static_cast<double>(std::clock() - t0) / static_cast<double>(CLOCKS_PER_SEC);
 }
 
 }  // namespace
@@ -87,14 +91,14 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   if (frame.width != width_ || frame.height != height_) return Status::kSizeMismatch;
   if (!mask.empty() && !sameSize(mask, frame)) return Status::kSizeMismatch;
   stats_ = FrameStats{};
-  auto t0 = std::chrono::steady_clock::now();
+  auto t0 = stageNow();
   pyramid_.build(frame);
   stats_.pyramid_ms = msSince(t0);
 
   if (frame_index_ > 0) {
     lk_.resetCounters();
     double kalman_ms = 0.0;
-    t0 = std::chrono::steady_clock::now();
+    t0 = stageNow();
     for (std::size_t s = 0; s < tracks_.size(); ++s) {
       Track& t = tracks_[s];
       if (!t.live) continue;
@@ -107,7 +111,21 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
       }
       float residual = 0.0f;
       PatchShape shape = t.shape;
-      const LkStatus st = lk_.align(static_cast<int>(s), pyramid_, x, y, shape, residual);
+      LkStatus st = LkStatus::kNoConvergence;
+      if (options_.kalman_gate && t.age >= options_.predicted_after) {
+        // An established track's Kalman prediction is within a pixel or two: start at
+        // `predicted_start_level` instead of the coarsest level, retry from the top on failure.
+        st = lk_.align(static_cast<int>(s), pyramid_, x, y, shape, residual,
+                       options_.predicted_start_level);
+        if (st != LkStatus::kTracked) {
+          x = static_cast<float>(t.kalman.x());
+          y = static_cast<float>(t.kalman.y());
+          shape = t.shape;
+        }
+      }
+      if (st != LkStatus::kTracked) {
+        st = lk_.align(static_cast<int>(s), pyramid_, x, y, shape, residual);
+      }
       const double res = static_cast<double>(residual);
       bool keep = st == LkStatus::kTracked;
       if (!keep) {
@@ -172,7 +190,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   if (frame_index_ == 0 || live_count_ < target ||
       (below && options_.redetect_interval > 0 &&
        frames_since_detect_ >= options_.redetect_interval)) {
-    t0 = std::chrono::steady_clock::now();
+    t0 = stageNow();
     detect(mask);
     stats_.detect_ms = msSince(t0);
     frames_since_detect_ = 0;

@@ -32,6 +32,8 @@ struct FeatureTrackerOptions {
   bool forward_backward = false;   ///< reserved: align back into the previous frame (not yet used)
   int max_iterations = 10;         ///< LK iterations per level
   bool affine = true;              ///< base level: affine template warp (else translation only)
+  int predicted_after = 3;         ///< tracks at least this old start LK at predicted_start_level
+  int predicted_start_level = 0;   ///< (the Kalman prediction replaces the coarse levels)
   double epsilon = 0.01;           ///< LK convergence, px
   double min_eigen = 4.0;          ///< LK texture threshold, (gray/px)^2 per pixel
   // Residuals are relative: RMS error after the intensity offset / template contrast (see
@@ -43,7 +45,8 @@ struct FeatureTrackerOptions {
   KalmanCvOptions kalman{};
 };
 
-/// Per-frame figures of the last `track` call (for benchmarks and logs).
+/// Per-frame figures of the last `track` call (for benchmarks and logs). Times are processor
+/// milliseconds of the process (std::clock), so a busy machine does not inflate them.
 struct FrameStats {
   double pyramid_ms = 0.0;
   double lk_ms = 0.0;

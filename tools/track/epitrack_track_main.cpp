@@ -76,6 +76,7 @@ int main(int argc, char** argv) {
   int max_frames = 0;
   bool no_kalman = false;
   bool quiet = false;
+  bool frame_stats = false;
   CommandLine cl(
       "epitrack-track", "INPUT --out tracks.csv [options]",
       "Tracks Shi-Tomasi corners through INPUT with pyramidal Lucas-Kanade and a Kalman\n"
@@ -95,8 +96,19 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
+  cl.real("max-residual", "R", "drop a track beyond this relative residual (default 0.5)",
+          &o.max_residual, 0.0, 1e9);
+  cl.real("max-residual-jump", "R",
+          "drop a track whose relative residual grows by more than this (default 0.15)",
+          &o.max_residual_jump, 0.0, 1e9);
+  cl.real("refresh-residual", "R", "take a new template beyond this residual (default off)",
+          &o.refresh_residual, 0.0, 1e9);
+  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.3)",
+          &o.kalman.process_accel_sigma, 0.0, 1e6);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
   cl.flag("quiet", "no progress on stderr", &quiet);
+  cl.flag("frame-stats", "per frame on stderr: live tracks, losses by reason, detections, ms",
+          &frame_stats);
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
@@ -151,6 +163,16 @@ int main(int argc, char** argv) {
     for (const auto& f : tracker->features()) {
       rows.push_back(hal::TrackRow{frame.index, f.id, f.x, f.y});
       ++lengths[f.id];
+    }
+    if (frame_stats) {
+      const epitrack::FrameStats& fs = tracker->lastStats();
+      std::fprintf(
+          stderr,
+          "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
+          "residual %d gate %d mask %d; detected %d; ms pyramid %.2f lk %.2f detect %.2f\n",
+          frames, fs.tracked, fs.lost_left_image, fs.lost_no_convergence, fs.lost_low_texture,
+          fs.lost_residual, fs.lost_gate, fs.lost_mask, fs.detected, fs.pyramid_ms, fs.lk_ms,
+          fs.detect_ms);
     }
     ++frames;
     if (!quiet && frames % 50 == 0) {

@@ -125,8 +125,18 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     const double scale = 1.0 / static_cast<double>(1 << l);
     const double px = static_cast<double>(x) * scale;
     const double py = static_cast<double>(y) * scale;
-    const int cx = static_cast<int>(std::lround(px));
-    const int cy = static_cast<int>(std::lround(py));
+    int cx = static_cast<int>(std::lround(px));
+    int cy = static_cast<int>(std::lround(py));
+    if (l > 0) {
+      // Near the border a coarse level takes its template where the window fits, up to half a
+      // window inward: the patch still overlaps the feature, its offset is remembered, and a
+      // translation of the patch is the feature's (the coarse levels only seed the finer ones).
+      // Without this, features near the border would have no coarse levels: no large motion.
+      cx = std::clamp(cx, std::min(half_ + 1, cx + half_),
+                      std::max(img.width - half_ - 2, cx - half_));
+      cy = std::clamp(cy, std::min(half_ + 1, cy + half_),
+                      std::max(img.height - half_ - 2, cy - half_));
+    }
     // The window plus one pixel for the Scharr stencil must lie inside the level.
     if (cx - half_ - 1 < 0 || cy - half_ - 1 < 0 || cx + half_ + 1 >= img.width ||
         cy + half_ + 1 >= img.height) {
@@ -187,6 +197,20 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     if (l == 0) setAffineHessian(slot);
   }
   return base_status;
+}
+
+void PyramidalLk::copyTemplate(int from, int to) {
+  EPITRACK_ASSERT(from >= 0 && from < capacity_ && to >= 0 && to < capacity_);
+  if (from == to) return;
+  const std::size_t n = static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(area_);
+  std::copy_n(value_.data() + patchIndex(from, 0), n, value_.data() + patchIndex(to, 0));
+  std::copy_n(grad_x_.data() + patchIndex(from, 0), n, grad_x_.data() + patchIndex(to, 0));
+  std::copy_n(grad_y_.data() + patchIndex(from, 0), n, grad_y_.data() + patchIndex(to, 0));
+  for (int l = 0; l < level_count_; ++l) {
+    levels_[static_cast<std::size_t>(to * level_count_ + l)] =
+        levels_[static_cast<std::size_t>(from * level_count_ + l)];
+  }
+  affine_[static_cast<std::size_t>(to)] = affine_[static_cast<std::size_t>(from)];
 }
 
 LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> image, double& cx,

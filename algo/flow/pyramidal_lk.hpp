@@ -67,6 +67,8 @@ class PyramidalLk {
   /// level where the window fits. Returns kTracked, kLeftImage (window outside the base level) or
   /// kLowTexture (base-level gradient matrix below min_eigen).
   LkStatus setTemplate(int slot, const Pyramid& pyramid, float x, float y);
+  /// Copies slot `from`'s template (every level) into slot `to`.
+  void copyTemplate(int from, int to);
 
   /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
   /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and

@@ -96,15 +96,36 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
-  cl.real("max-residual", "R", "drop a track beyond this relative residual (default 0.5)",
+  cl.real("max-residual", "R",
+          "drop a track beyond this relative residual or --residual-scale-max frame medians "
+          "(default 0.5)",
           &o.max_residual, 0.0, 1e9);
   cl.real("max-residual-jump", "R",
-          "drop a track whose relative residual grows by more than this (default 0.15)",
+          "drop a track whose residual jumps by more than this or --residual-scale-jump frame "
+          "medians above its own level (default 0.15)",
           &o.max_residual_jump, 0.0, 1e9);
-  cl.real("refresh-residual", "R", "take a new template beyond this residual (default off)",
+  cl.real("residual-scale-max", "K", "(default 3)", &o.residual_scale_max, 0.0, 1e9);
+  cl.real("residual-scale-jump", "K", "(default 1.5)", &o.residual_scale_jump, 0.0, 1e9);
+  cl.real("residual-scale-young", "K", "(default 3)", &o.residual_scale_young, 0.0, 1e9);
+  cl.real("residual-scale-refresh", "K", "(default 1.5)", &o.residual_scale_refresh, 0.0, 1e9);
+  cl.real("fb", "PX",
+          "forward-backward tolerance of the check of young and drifted tracks (default 0.75; "
+          "0: no check)",
+          &o.forward_backward_px, 0.0, 1e6);
+  cl.flag("fb-all", "check every track forward-backward", &o.forward_backward);
+  cl.real("refresh-residual", "R",
+          "beyond this residual or --residual-scale-refresh frame medians a track is checked "
+          "forward-backward and takes a new template (default 0.5)",
           &o.refresh_residual, 0.0, 1e9);
-  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.3)",
+  cl.integer("iterations", "N", "LK iterations per level (default 10)", &o.max_iterations, 1, 1000);
+  bool translation_only = false;
+  cl.flag("translation", "base level: translation only (default: affine template warp)",
+          &translation_only);
+  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.5)",
           &o.kalman.process_accel_sigma, 0.0, 1e6);
+  cl.real("gate-speed", "FRACTION",
+          "widen the Kalman gate by this fraction of the predicted speed (default 0.25)",
+          &o.gate_speed_fraction, 0.0, 100.0);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
   cl.flag("quiet", "no progress on stderr", &quiet);
   cl.flag("frame-stats", "per frame on stderr: live tracks, losses by reason, detections, ms",
@@ -113,6 +134,7 @@ int main(int argc, char** argv) {
     return CommandLine::exitCode(r);
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
   o.kalman_gate = !no_kalman;
+  o.affine = !translation_only;
 
   std::string error;
   auto source = hal::openFrameSource(input, {}, error);
@@ -169,10 +191,12 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
-          "residual %d gate %d mask %d; detected %d; ms pyramid %.2f lk %.2f detect %.2f\n",
+          "residual %d forward-backward %d gate %d mask %d; fb checks %d, refreshed %d, detected "
+          "%d; residual median %.3f; ms pyramid %.2f lk %.2f detect %.2f\n",
           frames, fs.tracked, fs.lost_left_image, fs.lost_no_convergence, fs.lost_low_texture,
-          fs.lost_residual, fs.lost_gate, fs.lost_mask, fs.detected, fs.pyramid_ms, fs.lk_ms,
-          fs.detect_ms);
+          fs.lost_residual, fs.lost_forward_backward, fs.lost_gate, fs.lost_mask,
+          fs.forward_backward_checks, fs.refreshed, fs.detected, fs.residual_median, fs.pyramid_ms,
+          fs.lk_ms, fs.detect_ms);
     }
     ++frames;
     if (!quiet && frames % 50 == 0) {

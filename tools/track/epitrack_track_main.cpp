@@ -104,10 +104,16 @@ int main(int argc, char** argv) {
           "drop a track whose residual jumps by more than this or --residual-scale-jump frame "
           "medians above its own level (default 0.15)",
           &o.max_residual_jump, 0.0, 1e9);
-  cl.real("residual-scale-max", "K", "(default 3)", &o.residual_scale_max, 0.0, 1e9);
-  cl.real("residual-scale-jump", "K", "(default 1.5)", &o.residual_scale_jump, 0.0, 1e9);
-  cl.real("residual-scale-young", "K", "(default 3)", &o.residual_scale_young, 0.0, 1e9);
-  cl.real("residual-scale-refresh", "K", "(default 1.5)", &o.residual_scale_refresh, 0.0, 1e9);
+  cl.real("residual-scale-max", "K", "see --max-residual (default 3)", &o.residual_scale_max, 0.0,
+          1e9);
+  cl.real("residual-scale-jump", "K", "see --max-residual-jump (default 1.5)",
+          &o.residual_scale_jump, 0.0, 1e9);
+  cl.real("residual-scale-young", "K",
+          "a new track's first residual: drop beyond this many frame medians or "
+          "--max-residual-jump (default 3)",
+          &o.residual_scale_young, 0.0, 1e9);
+  cl.real("residual-scale-refresh", "K", "see --refresh-residual (default 1.5)",
+          &o.residual_scale_refresh, 0.0, 1e9);
   cl.real("fb", "PX",
           "forward-backward tolerance of the check of young and drifted tracks (default 0.75; "
           "0: no check)",
@@ -121,7 +127,7 @@ int main(int argc, char** argv) {
   bool translation_only = false;
   cl.flag("translation", "base level: translation only (default: affine template warp)",
           &translation_only);
-  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.5)",
+  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.3)",
           &o.kalman.process_accel_sigma, 0.0, 1e6);
   cl.real("gate-speed", "FRACTION",
           "widen the Kalman gate by this fraction of the predicted speed (default 0.25)",
@@ -218,13 +224,18 @@ int main(int argc, char** argv) {
     std::sort(len.begin(), len.end());
     const double mean =
         static_cast<double>(rows.size()) / static_cast<double>(len.size() ? len.size() : 1);
-    const long long long_tracks =
-        std::count_if(len.begin(), len.end(), [](int n) { return n >= 50; });
+    auto at_least = [&len](int n) {
+      return static_cast<long long>(
+          std::count_if(len.begin(), len.end(), [n](int l) { return l >= n; }));
+    };
     std::fprintf(stderr,
-                 "epitrack-track: %d frames, %zu tracks (mean length %.1f, median %d, %lld of 50+ "
-                 "frames), %zu rows, %.2f ms/frame -> %s\n",
-                 frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], long_tracks,
-                 rows.size(), ms_total / frames, out.c_str());
+                 "epitrack-track: %d frames, %zu tracks (mean length %.1f, median %d; %lld of 5+ "
+                 "frames, %lld of 10+, %lld of 20+, %lld of 50+), %.0f live per frame, %zu rows, "
+                 "%.2f ms/frame -> %s\n",
+                 frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], at_least(5),
+                 at_least(10), at_least(20), at_least(50),
+                 static_cast<double>(rows.size()) / frames, rows.size(), ms_total / frames,
+                 out.c_str());
   }
   return 0;
 }

@@ -125,8 +125,18 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     const double scale = 1.0 / static_cast<double>(1 << l);
     const double px = static_cast<double>(x) * scale;
     const double py = static_cast<double>(y) * scale;
-    const int cx = static_cast<int>(std::lround(px));
-    const int cy = static_cast<int>(std::lround(py));
+    int cx = static_cast<int>(std::lround(px));
+    int cy = static_cast<int>(std::lround(py));
+    if (l > 0) {
+      // Near the border a coarse level takes its template where the window fits, up to half a
+      // window inward: the patch still overlaps the feature, its offset is remembered, and a
+      // translation of the patch is the feature's (the coarse levels only seed the finer ones).
+      // Without this, features near the border would have no coarse levels: no large motion.
+      cx = std::clamp(cx, std::min(half_ + 1, cx + half_),
+                      std::max(img.width - half_ - 2, cx - half_));
+      cy = std::clamp(cy, std::min(half_ + 1, cy + half_),
+                      std::max(img.height - half_ - 2, cy - half_));
+    }
     // The window plus one pixel for the Scharr stencil must lie inside the level.
     if (cx - half_ - 1 < 0 || cy - half_ - 1 < 0 || cx + half_ + 1 >= img.width ||
         cy + half_ + 1 >= img.height) {
@@ -189,6 +199,20 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
   return base_status;
 }
 
+void PyramidalLk::copyTemplate(int from, int to) {
+  EPITRACK_ASSERT(from >= 0 && from < capacity_ && to >= 0 && to < capacity_);
+  if (from == to) return;
+  const std::size_t n = static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(area_);
+  std::copy_n(value_.data() + patchIndex(from, 0), n, value_.data() + patchIndex(to, 0));
+  std::copy_n(grad_x_.data() + patchIndex(from, 0), n, grad_x_.data() + patchIndex(to, 0));
+  std::copy_n(grad_y_.data() + patchIndex(from, 0), n, grad_y_.data() + patchIndex(to, 0));
+  for (int l = 0; l < level_count_; ++l) {
+    levels_[static_cast<std::size_t>(to * level_count_ + l)] =
+        levels_[static_cast<std::size_t>(from * level_count_ + l)];
+  }
+  affine_[static_cast<std::size_t>(to)] = affine_[static_cast<std::size_t>(from)];
+}
+
 LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> image, double& cx,
                                  double& cy, double& bias_io, double& residual,
                                  bool want_residual) const {
@@ -198,7 +222,9 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   const int16_t* Sx = grad_x_.data() + base;
   const int16_t* Sy = grad_y_.data() + base;
   const auto& Hi = lt.H_inv;
-  const double eps2 = options_.epsilon * options_.epsilon;
+  // Coarse levels only need to land in the finer level's basin: a 4x looser bound.
+  const double eps = level > 0 ? 4.0 * options_.epsilon : options_.epsilon;
+  const double eps2 = eps * eps;
   constexpr int kOne = 1 << kWeightBits;
   constexpr int kShift = kWeightBits - kValueBits;
   constexpr int kRound = 1 << (kShift - 1);
@@ -393,7 +419,7 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
 }
 
 LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
-                            float& residual) const {
+                            float& residual, int start_level) const {
   EPITRACK_ASSERT(slot >= 0 && slot < capacity_);
   const int levels = std::min(level_count_, pyramid.levelCount());
   double px = x;
@@ -401,7 +427,7 @@ LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y
   double res = 0.0;
   double A[4] = {shape.a00, shape.a01, shape.a10, shape.a11};
   double bias = 0.0;  // intensity offset, carried from coarse to fine
-  for (int l = levels - 1; l >= 0; --l) {
+  for (int l = std::min(levels - 1, std::max(start_level, 0)); l >= 0; --l) {
     const LevelTemplate& lt = levels_[static_cast<std::size_t>(slot * level_count_ + l)];
     if (!lt.valid) {
       if (l == 0) return LkStatus::kLowTexture;

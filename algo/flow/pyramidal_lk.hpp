@@ -67,6 +67,8 @@ class PyramidalLk {
   /// level where the window fits. Returns kTracked, kLeftImage (window outside the base level) or
   /// kLowTexture (base-level gradient matrix below min_eigen).
   LkStatus setTemplate(int slot, const Pyramid& pyramid, float x, float y);
+  /// Copies slot `from`'s template (every level) into slot `to`.
+  void copyTemplate(int from, int to);
 
   /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
   /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and
@@ -79,8 +81,10 @@ class PyramidalLk {
   /// As above, with the affine shape of the template in the image (in: the previous frame's,
   /// out: the aligned one). The base level estimates an affine warp (Baker & Matthews 2004 §2-3,
   /// inverse compositional with a bias term); coarser levels a translation.
+  /// `start_level` (default: the coarsest) lets a caller with a good prediction (a Kalman filter)
+  /// skip the coarse levels.
   LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
-                 float& residual) const;
+                 float& residual, int start_level = kMaxLevels) const;
 
   [[nodiscard]] const LkOptions& options() const { return options_; }
   [[nodiscard]] int capacity() const { return capacity_; }

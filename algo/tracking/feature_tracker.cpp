@@ -1,8 +1,10 @@
 #include "algo/tracking/feature_tracker.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
 
 namespace epitrack {
 namespace {
@@ -27,8 +29,12 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   return l;
 }
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+// Stage times are processor time of the process (std::clock): on a shared machine they measure
+// the work, not the waiting for a core. The tracker runs on the calling thread only.
+using StageClock = std::clock_t;
+StageClock stageNow() { return std::clock(); }
+double msSince(StageClock t0) {
+  return 1000.0 * static_cast<double>(std::clock() - t0) / static_cast<double>(CLOCKS_PER_SEC);
 }
 
 }  // namespace
@@ -38,13 +44,18 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
       width_(width),
       height_(height),
       detector_(detectorOptions(options), width, height),
-      lk_(lkOptions(options), std::max(options.max_features, 0)) {
+      lk_(lkOptions(options), std::max(options.max_features, 0) + 1) {  // + the check's slot
   options_.max_features = std::max(options_.max_features, 0);
   options_.levels = std::clamp(options_.levels, 0, Pyramid::kMaxLevels - 1);
-  if (width > 0 && height > 0) pyramid_.configure(width, height, options_.levels + 1);
+  if (width > 0 && height > 0) {
+    for (Pyramid& p : pyramids_) p.configure(width, height, options_.levels + 1);
+  }
   const auto n = static_cast<std::size_t>(options_.max_features);
-  tracks_.assign(
-      n, Track{0, 0, 0.0f, 0.0f, 0.0f, false, PatchShape{}, KalmanFilterCv(options_.kalman)});
+  tracks_.assign(n, Track{0, 0, 0.0f, 0.0f, 0.0f, 0.0f, false, PatchShape{},
+                          KalmanFilterCv(options_.kalman), Candidate{}});
+  for (auto* v : {&moved_x_, &moved_y_, &moved_dx_, &moved_dy_, &scratch_dx_, &scratch_dy_}) {
+    v->resize(n);
+  }
   live_points_.resize(n);
   corners_.resize(n);
   output_.resize(n);
@@ -58,7 +69,8 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
   const int wanted = options_.max_features - n_live;
   if (wanted <= 0) return;
   int found = 0;
-  detector_.detect(pyramid_.level(0),
+  const Pyramid& pyramid = pyramids_[current_];
+  detector_.detect(pyramid.level(0),
                    std::span<const Point2f>(live_points_.data(), static_cast<std::size_t>(n_live)),
                    mask, wanted, std::span<Corner>(corners_.data(), corners_.size()), found);
   std::size_t slot = 0;
@@ -66,13 +78,14 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
     while (slot < tracks_.size() && tracks_[slot].live) ++slot;
     if (slot == tracks_.size()) break;
     const Corner& c = corners_[static_cast<std::size_t>(i)];
-    if (lk_.setTemplate(static_cast<int>(slot), pyramid_, c.x, c.y) != LkStatus::kTracked) continue;
+    if (lk_.setTemplate(static_cast<int>(slot), pyramid, c.x, c.y) != LkStatus::kTracked) continue;
     Track& t = tracks_[slot];
     t.id = next_id_++;
     t.age = 0;
     t.x = c.x;
     t.y = c.y;
     t.residual = 0.0f;
+    t.residual_level = 0.0f;
     t.shape = PatchShape{};
     t.live = true;
     t.kalman.init(c.x, c.y);
@@ -81,98 +94,261 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
   }
 }
 
+namespace {
+
+/// Median of values[0, n) (partially reorders them). n > 0.
+float medianOf(float* values, int n) {
+  const auto mid = values + n / 2;
+  std::nth_element(values, mid, values + n);
+  return *mid;
+}
+
+}  // namespace
+
+void FeatureTracker::neighbourMotion(float x, float y, float& dx, float& dy) {
+  dx = 0.0f;
+  dy = 0.0f;
+  if (moved_count_ == 0) return;
+  const float radius =
+      static_cast<float>(options_.neighbour_radius) * static_cast<float>(std::max(width_, height_));
+  const float r2 = radius * radius;
+  int n = 0;
+  for (int i = 0; i < moved_count_; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    const float ex = moved_x_[k] - x;
+    const float ey = moved_y_[k] - y;
+    if (ex * ex + ey * ey > r2) continue;
+    scratch_dx_[static_cast<std::size_t>(n)] = moved_dx_[k];
+    scratch_dy_[static_cast<std::size_t>(n)] = moved_dy_[k];
+    ++n;
+  }
+  if (n >= 3) {
+    dx = medianOf(scratch_dx_.data(), n);
+    dy = medianOf(scratch_dy_.data(), n);
+    return;
+  }
+  if (!global_ready_) {
+    std::copy_n(moved_dx_.begin(), moved_count_, scratch_dx_.begin());
+    std::copy_n(moved_dy_.begin(), moved_count_, scratch_dy_.begin());
+    global_dx_ = medianOf(scratch_dx_.data(), moved_count_);
+    global_dy_ = medianOf(scratch_dy_.data(), moved_count_);
+    global_ready_ = true;
+  }
+  dx = global_dx_;
+  dy = global_dy_;
+}
+
+bool FeatureTracker::forwardBackward(float x0, float y0, float x, float y, float px, float py) {
+  ++stats_.forward_backward_checks;
+  const int check_slot = options_.max_features;  // the spare slot
+  if (lk_.setTemplate(check_slot, pyramids_[current_], x, y) != LkStatus::kTracked) return false;
+  // Start from the mirrored prediction: the backward motion is as hard as the forward one.
+  float bx = x - (px - x0);
+  float by = y - (py - y0);
+  PatchShape shape;
+  float residual = 0.0f;
+  if (lk_.align(check_slot, pyramids_[1 - current_], bx, by, shape, residual) !=
+      LkStatus::kTracked) {
+    return false;
+  }
+  const float ex = bx - x0;
+  const float ey = by - y0;
+  return ex * ex + ey * ey <=
+         static_cast<float>(options_.forward_backward_px * options_.forward_backward_px);
+}
+
+bool FeatureTracker::gateAccepts(const KalmanFilterCv& kalman, double mx, double my) const {
+  const auto& P = kalman.covariance();
+  const double r2 = kalman.options().measurement_sigma * kalman.options().measurement_sigma;
+  const double speed = std::hypot(kalman.vx(), kalman.vy());
+  const double widen = options_.gate_speed_fraction * speed;
+  const double s00 = P(0, 0) + r2 + widen * widen;
+  const double s11 = P(1, 1) + r2 + widen * widen;
+  const double s01 = P(0, 1);
+  const double det = s00 * s11 - s01 * s01;
+  if (!(det > 0.0)) return false;
+  const double nx = mx - kalman.x();
+  const double ny = my - kalman.y();
+  // Squared Mahalanobis distance under the 2x2 innovation covariance (the paper §4.2).
+  const double d2 = (s11 * nx * nx - 2.0 * s01 * nx * ny + s00 * ny * ny) / det;
+  return d2 <= kalman.options().gate_chi2;
+}
+
+void FeatureTracker::alignOne(std::size_t s, bool young) {
+  Track& t = tracks_[s];
+  const Pyramid& pyramid = pyramids_[current_];
+  const int slot = static_cast<int>(s);
+  const float x0 = t.x;
+  const float y0 = t.y;
+  // The prediction: the Kalman filter's for a track with a velocity, else the neighbours' motion.
+  float px = x0;
+  float py = y0;
+  if (options_.kalman_gate) t.kalman.predict(1.0 + static_cast<double>(skipped_frames_));
+  if (young) {
+    if (options_.neighbour_prior) {
+      float dx = 0.0f, dy = 0.0f;
+      neighbourMotion(x0, y0, dx, dy);
+      px += dx;
+      py += dy;
+    }
+  } else if (options_.kalman_gate) {
+    px = static_cast<float>(t.kalman.x());
+    py = static_cast<float>(t.kalman.y());
+  }
+  Candidate& c = t.candidate;
+  c.x = px;
+  c.y = py;
+  c.residual = 0.0f;
+  c.shape = t.shape;
+  c.status = LkStatus::kNoConvergence;
+  if (!young && options_.kalman_gate && t.age >= options_.predicted_after) {
+    // An established track's Kalman prediction is within a pixel or two: start at
+    // `predicted_start_level` instead of the coarsest level, retry from the top on failure.
+    c.status =
+        lk_.align(slot, pyramid, c.x, c.y, c.shape, c.residual, options_.predicted_start_level);
+  }
+  if (c.status != LkStatus::kTracked) {
+    c.x = px;
+    c.y = py;
+    c.shape = t.shape;
+    c.status = lk_.align(slot, pyramid, c.x, c.y, c.shape, c.residual);
+  }
+  if (c.status != LkStatus::kTracked && (px != x0 || py != y0)) {
+    // The prediction may be what misled it: once more from where the track was.
+    px = x0;
+    py = y0;
+    c.x = x0;
+    c.y = y0;
+    c.shape = t.shape;
+    c.status = lk_.align(slot, pyramid, c.x, c.y, c.shape, c.residual);
+  }
+  c.predicted_x = px;
+  c.predicted_y = py;
+  if (!young && c.status == LkStatus::kTracked) {
+    const auto k = static_cast<std::size_t>(moved_count_++);
+    moved_x_[k] = x0;
+    moved_y_[k] = y0;
+    moved_dx_[k] = c.x - x0;
+    moved_dy_[k] = c.y - y0;
+  }
+}
+
+void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
+                               ImageView<const uint8_t> mask) {
+  Track& t = tracks_[s];
+  const Candidate& c = t.candidate;
+  auto drop = [&](int& counter) {
+    ++counter;
+    t.live = false;
+    --live_count_;
+  };
+  if (c.status != LkStatus::kTracked) {
+    ++stats_.lost_lk;
+    stats_.lost_left_image += c.status == LkStatus::kLeftImage ? 1 : 0;
+    stats_.lost_no_convergence += c.status == LkStatus::kNoConvergence ? 1 : 0;
+    stats_.lost_low_texture += c.status == LkStatus::kLowTexture ? 1 : 0;
+    t.live = false;
+    --live_count_;
+    return;
+  }
+  // Thresholds scale with the frame's typical residual (noise, blur, compression of real
+  // footage raise every track's residual alike; a clean rendering keeps the fixed ones).
+  const double res = static_cast<double>(c.residual);
+  const double max_res =
+      std::max(options_.max_residual, options_.residual_scale_max * residual_scale);
+  const double jump =
+      std::max(options_.max_residual_jump, options_.residual_scale_jump * residual_scale);
+  const double refresh =
+      std::max(options_.refresh_residual, options_.residual_scale_refresh * residual_scale);
+  // Too far from the template, or a jump above the track's own level (a young track has none:
+  // the jump from zero, or residual_scale_young frame medians): occlusion, or sliding onto other
+  // structure.
+  const double young_max =
+      std::max(options_.max_residual_jump, options_.residual_scale_young * residual_scale);
+  if (res > max_res || (young && res > young_max) ||
+      (!young && res > static_cast<double>(t.residual_level) + jump)) {
+    return drop(stats_.lost_residual);
+  }
+  // The forward-backward check: every young track (it has no velocity for the gate yet), tracks
+  // whose appearance drifted (before their template is refreshed), or every track if asked.
+  const bool check =
+      options_.forward_backward_px > 0.0 && (young || options_.forward_backward || res > refresh);
+  if (check && !forwardBackward(t.x, t.y, c.x, c.y, c.predicted_x, c.predicted_y)) {
+    return drop(stats_.lost_forward_backward);
+  }
+  if (!mask.empty()) {
+    const int mx = std::clamp(static_cast<int>(std::lround(c.x)), 0, width_ - 1);
+    const int my = std::clamp(static_cast<int>(std::lround(c.y)), 0, height_ - 1);
+    if (mask(mx, my) == 0) return drop(stats_.lost_mask);
+  }
+  if (options_.kalman_gate) {
+    // A track seen once has no velocity: its first displacement is judged by the check above.
+    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate);
+    t.kalman.correct(c.x, c.y);
+  }
+  t.x = c.x;
+  t.y = c.y;
+  ++t.age;
+  t.residual = c.residual;
+  t.shape = c.shape;
+  t.residual_level = young ? c.residual : 0.7f * t.residual_level + 0.3f * c.residual;
+  if (check && res > refresh) {
+    // Appearance drifted (perspective, scale, light) but the patch still follows the point from
+    // the last frame: the check's template (taken here, in this frame) becomes the track's,
+    // keeping the track's residual level.
+    lk_.copyTemplate(options_.max_features, static_cast<int>(s));
+    t.residual = 0.0f;
+    t.shape = PatchShape{};
+    ++stats_.refreshed;
+  }
+}
+
 FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
                                              ImageView<const uint8_t> mask) {
-  if (pyramid_.levelCount() == 0) return Status::kNotConfigured;
+  if (pyramids_[0].levelCount() == 0) return Status::kNotConfigured;
   if (frame.width != width_ || frame.height != height_) return Status::kSizeMismatch;
   if (!mask.empty() && !sameSize(mask, frame)) return Status::kSizeMismatch;
   stats_ = FrameStats{};
-  auto t0 = std::chrono::steady_clock::now();
-  pyramid_.build(frame);
+  current_ = 1 - current_;
+  auto t0 = stageNow();
+  pyramids_[current_].build(frame);
   stats_.pyramid_ms = msSince(t0);
 
   if (frame_index_ > 0) {
     lk_.resetCounters();
-    double kalman_ms = 0.0;
-    t0 = std::chrono::steady_clock::now();
+    t0 = stageNow();
+    moved_count_ = 0;
+    global_ready_ = false;
+    // Tracks with a velocity first; their motion is the prior of the ones seen once.
     for (std::size_t s = 0; s < tracks_.size(); ++s) {
-      Track& t = tracks_[s];
-      if (!t.live) continue;
-      float x = t.x;
-      float y = t.y;
-      if (options_.kalman_gate) {
-        t.kalman.predict(1.0 + static_cast<double>(skipped_frames_));
-        x = static_cast<float>(t.kalman.x());
-        y = static_cast<float>(t.kalman.y());
-      }
-      float residual = 0.0f;
-      PatchShape shape = t.shape;
-      const LkStatus st = lk_.align(static_cast<int>(s), pyramid_, x, y, shape, residual);
-      const double res = static_cast<double>(residual);
-      bool keep = st == LkStatus::kTracked;
-      if (!keep) {
-        ++stats_.lost_lk;
-        stats_.lost_left_image += st == LkStatus::kLeftImage ? 1 : 0;
-        stats_.lost_no_convergence += st == LkStatus::kNoConvergence ? 1 : 0;
-        stats_.lost_low_texture += st == LkStatus::kLowTexture ? 1 : 0;
-      }
-      if (keep && (res > options_.max_residual ||
-                   res > static_cast<double>(t.residual) + options_.max_residual_jump)) {
-        keep = false;
-        ++stats_.lost_residual;
-      }
-      if (keep && !mask.empty()) {
-        const int mx = std::clamp(static_cast<int>(std::lround(x)), 0, width_ - 1);
-        const int my = std::clamp(static_cast<int>(std::lround(y)), 0, height_ - 1);
-        if (mask(mx, my) == 0) {
-          keep = false;
-          ++stats_.lost_mask;
-        }
-      }
-      if (keep && options_.kalman_gate) {
-        if (t.kalman.accepts(x, y)) {
-          t.kalman.correct(x, y);
-        } else {
-          keep = false;
-          ++stats_.lost_gate;
-        }
-      }
-      if (!keep) {
-        t.live = false;
-        --live_count_;
-        continue;
-      }
-      t.x = x;
-      t.y = y;
-      ++t.age;
-      t.residual = residual;
-      t.shape = shape;
-      if (res > options_.refresh_residual) {
-        // Appearance drifted (perspective change): restart the template here. Costs one
-        // re-sampling error, instead of one per frame as frame-to-frame tracking does.
-        if (lk_.setTemplate(static_cast<int>(s), pyramid_, x, y) == LkStatus::kTracked) {
-          t.residual = 0.0f;
-          t.shape = PatchShape{};
-          ++stats_.refreshed;
-        } else {
-          t.live = false;
-          --live_count_;
-          ++stats_.lost_lk;
-        }
+      if (tracks_[s].live && tracks_[s].age > 0) alignOne(s, false);
+    }
+    for (std::size_t s = 0; s < tracks_.size(); ++s) {
+      if (tracks_[s].live && tracks_[s].age == 0) alignOne(s, true);
+    }
+    // The frame's typical residual: the median over the aligned tracks.
+    int n = 0;
+    for (const Track& t : tracks_) {
+      if (t.live && t.candidate.status == LkStatus::kTracked) {
+        scratch_dx_[static_cast<std::size_t>(n++)] = t.candidate.residual;
       }
     }
-    stats_.lk_ms = msSince(t0) - kalman_ms;
-    stats_.kalman_ms = kalman_ms;
+    const double residual_scale =
+        n > 0 ? static_cast<double>(medianOf(scratch_dx_.data(), n)) : 0.0;
+    stats_.residual_median = residual_scale;
+    for (std::size_t s = 0; s < tracks_.size(); ++s) {
+      if (tracks_[s].live) decideOne(s, tracks_[s].age == 0, residual_scale, mask);
+    }
+    stats_.lk_ms = msSince(t0);
     stats_.lk_iterations = lk_.iterations();
   }
-
   ++frames_since_detect_;
   const double target = options_.redetect_fraction * options_.max_features;
   const bool below = live_count_ < options_.max_features;
   if (frame_index_ == 0 || live_count_ < target ||
       (below && options_.redetect_interval > 0 &&
        frames_since_detect_ >= options_.redetect_interval)) {
-    t0 = std::chrono::steady_clock::now();
+    t0 = stageNow();
     detect(mask);
     stats_.detect_ms = msSince(t0);
     frames_since_detect_ = 0;

@@ -29,21 +29,47 @@ struct FeatureTrackerOptions {
   int redetect_interval = 0;       ///< also re-detect every N frames when below target (0: never)
   double min_quality = 0.001;      ///< floor of the detector's adaptive threshold (relative)
   bool kalman_gate = true;         ///< reject LK measurements outside the Kalman chi-square gate
-  bool forward_backward = false;   ///< reserved: align back into the previous frame (not yet used)
-  int max_iterations = 10;         ///< LK iterations per level
-  bool affine = true;              ///< base level: affine template warp (else translation only)
-  double epsilon = 0.01;           ///< LK convergence, px
-  double min_eigen = 4.0;          ///< LK texture threshold, (gray/px)^2 per pixel
+  /// The gate's innovation covariance is widened by (gate_speed_fraction * predicted speed)^2:
+  /// real image motion accelerates in proportion to its speed (forward motion, zoom, a hand).
+  double gate_speed_fraction = 0.25;
+  int max_iterations = 10;        ///< LK iterations per level
+  bool affine = true;             ///< base level: affine template warp (else translation only)
+  int predicted_after = 3;        ///< tracks at least this old start LK at predicted_start_level
+  int predicted_start_level = 0;  ///< (the Kalman prediction replaces the coarse levels)
+  /// A track seen once has no velocity yet: start it from the median displacement of its
+  /// neighbours tracked in the same frame (within neighbour_radius of the larger image side).
+  bool neighbour_prior = true;
+  double neighbour_radius = 0.15;
+  double epsilon = 0.01;   ///< LK convergence, px
+  double min_eigen = 4.0;  ///< LK texture threshold, (gray/px)^2 per pixel
   // Residuals are relative: RMS error after the intensity offset / template contrast (see
   // PyramidalLk::align). With the affine template the residual stays small while the point is
-  // visible; occlusion or sliding onto other structure raises it.
-  double refresh_residual = 1e9;    ///< take a new template beyond this (off by default: drifts)
-  double max_residual = 0.5;        ///< drop the track beyond this residual (occlusion)
-  double max_residual_jump = 0.15;  ///< drop when the residual grows by more than this in a frame
+  // visible; occlusion or sliding onto other structure raises it, and so do noise, blur and
+  // compression on real footage, for every track alike. So each threshold is the larger of a
+  // fixed value (what a clean image needs) and a multiple of the frame's median residual.
+  // A track is dropped beyond max_residual, or when its residual jumps by more than
+  // max_residual_jump above its own running level (on its first tracked frame: above
+  // max_residual_jump and residual_scale_young frame medians).
+  double max_residual = 0.5;          ///< drop beyond this residual (occlusion)
+  double max_residual_jump = 0.15;    ///< drop when the residual jumps by more than this
+  double residual_scale_max = 3.0;    ///< ... or this many frame medians
+  double residual_scale_jump = 1.5;   ///< ... or this many frame medians
+  double residual_scale_young = 3.0;  ///< a young track's first residual: this many medians
+  /// Beyond this residual (or residual_scale_refresh frame medians) a track must pass the
+  /// forward-backward check, then takes a new template at its position (appearance drifted:
+  /// perspective, scale, light); each refresh costs one re-sampling error.
+  double refresh_residual = 0.5;
+  double residual_scale_refresh = 1.5;
+  /// The forward-backward check (young and drifted tracks): the track's patch in this frame,
+  /// aligned back into the previous frame from the mirrored prediction, must land within this
+  /// of where the track came from (0: no check, no refresh).
+  double forward_backward_px = 0.75;
+  bool forward_backward = false;  ///< check every track, not only young and drifted ones
   KalmanCvOptions kalman{};
 };
 
-/// Per-frame figures of the last `track` call (for benchmarks and logs).
+/// Per-frame figures of the last `track` call (for benchmarks and logs). Times are processor
+/// milliseconds of the process (std::clock), so a busy machine does not inflate them.
 struct FrameStats {
   double pyramid_ms = 0.0;
   double lk_ms = 0.0;
@@ -56,9 +82,12 @@ struct FrameStats {
   int lost_low_texture = 0;
   int lost_gate = 0;
   int lost_residual = 0;
+  int lost_forward_backward = 0;
   int lost_mask = 0;
   int detected = 0;
   int refreshed = 0;
+  int forward_backward_checks = 0;
+  double residual_median = 0.0;  ///< the frame's typical relative residual (the scale)
   long lk_iterations = 0;
 };
 
@@ -87,31 +116,62 @@ class FeatureTracker {
   [[nodiscard]] const FrameStats& lastStats() const { return stats_; }
   [[nodiscard]] const FeatureTrackerOptions& options() const { return options_; }
   [[nodiscard]] int frameCount() const { return frame_index_; }
-  [[nodiscard]] const Pyramid& pyramid() const { return pyramid_; }
+  [[nodiscard]] const Pyramid& pyramid() const { return pyramids_[current_]; }
 
  private:
+  struct Candidate {  // this frame's alignment of a track, before it is judged
+    float x = 0.0f;
+    float y = 0.0f;
+    float predicted_x = 0.0f;  // where the alignment started
+    float predicted_y = 0.0f;
+    float residual = 0.0f;
+    PatchShape shape;
+    LkStatus status = LkStatus::kNoConvergence;
+  };
   struct Track {
     int32_t id = 0;
     int32_t age = 0;
     float x = 0.0f;
     float y = 0.0f;
-    float residual = 0.0f;
+    float residual = 0.0f;        // last frame's
+    float residual_level = 0.0f;  // running level (exponential average)
     bool live = false;
     PatchShape shape;
     KalmanFilterCv kalman;
+    Candidate candidate;
   };
   void detect(ImageView<const uint8_t> mask);
+  /// Aligns track `slot` into this frame (its candidate); `young`: seen in one frame only.
+  void alignOne(std::size_t slot, bool young);
+  /// Keeps or drops track `slot` after alignOne (residual, check, mask, gate).
+  void decideOne(std::size_t slot, bool young, double residual_scale,
+                 ImageView<const uint8_t> mask);
+  /// Median displacement of the tracks already tracked this frame near (x, y).
+  void neighbourMotion(float x, float y, float& dx, float& dy);
+  /// Forward-backward check of a track that moved from (x0, y0) to (x, y) with the prediction
+  /// (px, py): its patch at (x, y) in this frame, aligned back into the previous frame from the
+  /// mirrored prediction, must land within forward_backward_px of (x0, y0).
+  bool forwardBackward(float x0, float y0, float x, float y, float px, float py);
+  /// The Kalman gate with the innovation covariance widened in proportion to the speed.
+  bool gateAccepts(const KalmanFilterCv& kalman, double mx, double my) const;
 
   FeatureTrackerOptions options_;
   int width_ = 0;
   int height_ = 0;
-  Pyramid pyramid_;
+  Pyramid pyramids_[2];  // this frame's and the previous one (for the forward-backward check)
+  int current_ = 0;
   ShiTomasiDetector detector_;
   PyramidalLk lk_;
   std::vector<Track> tracks_;         // max_features slots
   std::vector<Point2f> live_points_;  // scratch for the detector
   std::vector<Corner> corners_;       // scratch for the detector
   std::vector<TrackedFeature> output_;
+  // Displacements of the tracks tracked so far this frame (for neighbour priors), and scratch.
+  std::vector<float> moved_x_, moved_y_, moved_dx_, moved_dy_, scratch_dx_, scratch_dy_;
+  int moved_count_ = 0;
+  float global_dx_ = 0.0f;  // median of all moved_* (valid when moved_count_ > 0)
+  float global_dy_ = 0.0f;
+  bool global_ready_ = false;
   int output_count_ = 0;
   int live_count_ = 0;
   int32_t next_id_ = 0;

@@ -76,6 +76,7 @@ int main(int argc, char** argv) {
   int max_frames = 0;
   bool no_kalman = false;
   bool quiet = false;
+  bool frame_stats = false;
   CommandLine cl(
       "epitrack-track", "INPUT --out tracks.csv [options]",
       "Tracks Shi-Tomasi corners through INPUT with pyramidal Lucas-Kanade and a Kalman\n"
@@ -95,12 +96,51 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
+  cl.real("max-residual", "R",
+          "drop a track beyond this relative residual or --residual-scale-max frame medians "
+          "(default 0.5)",
+          &o.max_residual, 0.0, 1e9);
+  cl.real("max-residual-jump", "R",
+          "drop a track whose residual jumps by more than this or --residual-scale-jump frame "
+          "medians above its own level (default 0.15)",
+          &o.max_residual_jump, 0.0, 1e9);
+  cl.real("residual-scale-max", "K", "see --max-residual (default 3)", &o.residual_scale_max, 0.0,
+          1e9);
+  cl.real("residual-scale-jump", "K", "see --max-residual-jump (default 1.5)",
+          &o.residual_scale_jump, 0.0, 1e9);
+  cl.real("residual-scale-young", "K",
+          "a new track's first residual: drop beyond this many frame medians or "
+          "--max-residual-jump (default 3)",
+          &o.residual_scale_young, 0.0, 1e9);
+  cl.real("residual-scale-refresh", "K", "see --refresh-residual (default 1.5)",
+          &o.residual_scale_refresh, 0.0, 1e9);
+  cl.real("fb", "PX",
+          "forward-backward tolerance of the check of young and drifted tracks (default 0.75; "
+          "0: no check)",
+          &o.forward_backward_px, 0.0, 1e6);
+  cl.flag("fb-all", "check every track forward-backward", &o.forward_backward);
+  cl.real("refresh-residual", "R",
+          "beyond this residual or --residual-scale-refresh frame medians a track is checked "
+          "forward-backward and takes a new template (default 0.5)",
+          &o.refresh_residual, 0.0, 1e9);
+  cl.integer("iterations", "N", "LK iterations per level (default 10)", &o.max_iterations, 1, 1000);
+  bool translation_only = false;
+  cl.flag("translation", "base level: translation only (default: affine template warp)",
+          &translation_only);
+  cl.real("kalman-accel", "PX", "Kalman process noise, px/frame^2 (default 0.3)",
+          &o.kalman.process_accel_sigma, 0.0, 1e6);
+  cl.real("gate-speed", "FRACTION",
+          "widen the Kalman gate by this fraction of the predicted speed (default 0.25)",
+          &o.gate_speed_fraction, 0.0, 100.0);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
   cl.flag("quiet", "no progress on stderr", &quiet);
+  cl.flag("frame-stats", "per frame on stderr: live tracks, losses by reason, detections, ms",
+          &frame_stats);
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
   o.kalman_gate = !no_kalman;
+  o.affine = !translation_only;
 
   std::string error;
   auto source = hal::openFrameSource(input, {}, error);
@@ -153,6 +193,18 @@ int main(int argc, char** argv) {
       rows.push_back(hal::TrackRow{frame.index, f.id, f.x, f.y});
       ++lengths[f.id];
     }
+    if (frame_stats) {
+      const epitrack::FrameStats& fs = tracker->lastStats();
+      std::fprintf(
+          stderr,
+          "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
+          "residual %d forward-backward %d gate %d mask %d; fb checks %d, refreshed %d, detected "
+          "%d; residual median %.3f; ms pyramid %.2f lk %.2f detect %.2f\n",
+          frames, fs.tracked, fs.lost_left_image, fs.lost_no_convergence, fs.lost_low_texture,
+          fs.lost_residual, fs.lost_forward_backward, fs.lost_gate, fs.lost_mask,
+          fs.forward_backward_checks, fs.refreshed, fs.detected, fs.residual_median, fs.pyramid_ms,
+          fs.lk_ms, fs.detect_ms);
+    }
     ++frames;
     if (!quiet && frames % 50 == 0) {
       std::fprintf(stderr, "epitrack-track: frame %d, %zu live tracks\n", frames,
@@ -173,13 +225,18 @@ int main(int argc, char** argv) {
     std::sort(len.begin(), len.end());
     const double mean =
         static_cast<double>(rows.size()) / static_cast<double>(len.size() ? len.size() : 1);
-    const long long long_tracks =
-        std::count_if(len.begin(), len.end(), [](int n) { return n >= 50; });
+    auto at_least = [&len](int n) {
+      return static_cast<long long>(
+          std::count_if(len.begin(), len.end(), [n](int l) { return l >= n; }));
+    };
     std::fprintf(stderr,
-                 "epitrack-track: %d frames, %zu tracks (mean length %.1f, median %d, %lld of 50+ "
-                 "frames), %zu rows, %.2f ms/frame -> %s\n",
-                 frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], long_tracks,
-                 rows.size(), ms_total / frames, out.c_str());
+                 "epitrack-track: %d frames, %zu tracks (mean length %.1f, median %d; %lld of 5+ "
+                 "frames, %lld of 10+, %lld of 20+, %lld of 50+), %.0f live per frame, %zu rows, "
+                 "%.2f ms/frame -> %s\n",
+                 frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], at_least(5),
+                 at_least(10), at_least(20), at_least(50),
+                 static_cast<double>(rows.size()) / frames, rows.size(), ms_total / frames,
+                 out.c_str());
   }
   return 0;
 }

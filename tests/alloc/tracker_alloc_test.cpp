@@ -1,0 +1,48 @@
+#include <catch2/catch.hpp>
+
+#include <vector>
+
+#include "algo/image/image.hpp"
+#include "algo/tracking/feature_tracker.hpp"
+#include "tests/alloc/counting_allocator.hpp"
+#include "tools/synth/synthetic_sequence.hpp"
+
+using epitrack::FeatureTracker;
+using epitrack::FeatureTrackerOptions;
+using epitrack::Image;
+using epitrack::test::AllocationScope;
+
+// The rule: no heap allocation per frame after the first two. A hand-held clip exercises
+// every path: LK, the Kalman gate, re-detection, neighbour priors, the forward-backward check and
+// template refreshes (the noise raises the residuals: the frame-median scaling and the checks run).
+TEST_CASE("FeatureTracker allocates nothing per frame after the first two", "[alloc][tracker]") {
+  epitrack::synth::SynthOptions o;
+  o.kind = epitrack::synth::SceneKind::kHandheld;
+  o.frames = 102;
+  o.width = 320;
+  o.height = 240;
+  o.focal = 280.0;
+  o.noise_sigma = 3.0;
+  o.seed = 3;
+  const epitrack::synth::SyntheticSequence seq(o);
+  epitrack::synth::FrameRenderer renderer(seq);
+  std::vector<Image<uint8_t>> frames(static_cast<std::size_t>(o.frames));
+  for (int f = 0; f < o.frames; ++f) renderer.render(f, frames[static_cast<std::size_t>(f)]);
+
+  FeatureTrackerOptions options;
+  options.max_features = 150;
+  FeatureTracker tracker(options, o.width, o.height);
+  REQUIRE(tracker.track(frames[0].constView()) == FeatureTracker::Status::kOk);
+  REQUIRE(tracker.track(frames[1].constView()) == FeatureTracker::Status::kOk);
+  AllocationScope scope;
+  int detected = 0, checks = 0;
+  for (std::size_t f = 2; f < frames.size(); ++f) {
+    REQUIRE(tracker.track(frames[f].constView()) == FeatureTracker::Status::kOk);
+    detected += tracker.lastStats().detected;
+    checks += tracker.lastStats().forward_backward_checks;
+  }
+  const std::size_t allocations = scope.count();
+  REQUIRE(allocations == 0);
+  CHECK(detected > 0);  // the paths ran
+  CHECK(checks > 0);
+}

@@ -177,6 +177,25 @@ const std::map<std::string, Key>& keyTable() {
                                   [](DeviceConfig& c, const std::string& v, std::string& e) {
                                     return parseReal(v, 0.1, 45.0, c.map.init_min_parallax_deg, e);
                                   }};
+    t["init_min_displacement"] = {
+        "median track displacement (fraction of the width) before an initial pair is tried",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseReal(v, 0.0, 0.5, c.map.init_min_displacement, e);
+        }};
+    t["init_max_gap"] = {
+        "frames after which an initialisation reference that never succeeded is renewed",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseInt(v, 1, 1000000, c.map.init_max_gap, e);
+        }};
+    t["young_map_keyframes"] = {
+        "keyframes before the map counts as mature (dense keyframes until then)",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseInt(v, 0, 1000, c.map.young_map_keyframes, e);
+        }};
+    t["young_map_keyframe_gap"] = {"frames between keyframes while the map is young",
+                                   [](DeviceConfig& c, const std::string& v, std::string& e) {
+                                     return parseInt(v, 1, 1000, c.map.young_map_keyframe_gap, e);
+                                   }};
     t["init_min_points"] = {"points the initial pair must triangulate",
                             [](DeviceConfig& c, const std::string& v, std::string& e) {
                               return parseInt(v, 8, 100000, c.map.init_min_points, e);

@@ -383,6 +383,10 @@ bool LiveMap::needKeyframe(const PoseCw& pose, int inliers) {
   const Keyframe* last = keyframe(kf_next_seq_ - 1);
   if (last == nullptr) return true;
   if (frames_since_kf_ >= options_.keyframe_max_gap) return true;
+  // A young map (few keyframes) is weak: keyframes come densely until it has matured.
+  if (keyframeCount() < options_.young_map_keyframes &&
+      frames_since_kf_ >= options_.young_map_keyframe_gap)
+    return true;
   if (static_cast<double>(inliers) <
       options_.keyframe_min_tracked * static_cast<double>(last->inliers))
     return true;
@@ -478,6 +482,28 @@ int LiveMap::triangulateNew(int64_t kf_seq) {
   return added;
 }
 
+void LiveMap::restoreScale(int n_cams, int n_pts) {
+  // One fixed camera (the last of the adjustment): scale the free cameras and the points about
+  // its centre so the distance to the nearest free camera is what it was before the adjustment.
+  const auto fixed = static_cast<std::size_t>(n_cams - 1);
+  const Eigen::Vector3d c_fixed = fromBa(ba_cameras_[fixed]).centre();
+  const Eigen::Vector3d c_before = keyframe(ba_kf_seq_[fixed - 1])->pose.centre();
+  const Eigen::Vector3d c_after = fromBa(ba_cameras_[fixed - 1]).centre();
+  const double before = (c_before - c_fixed).norm();
+  const double after = (c_after - c_fixed).norm();
+  if (!(after > 1e-12) || !std::isfinite(before / after)) return;
+  const double s = before / after;
+  for (std::size_t c = 0; c < fixed; ++c) {
+    auto& cam = ba_cameras_[c];
+    const Eigen::Vector3d centre = c_fixed + s * (fromBa(cam).centre() - c_fixed);
+    cam.t_cw = -cam.R_cw * centre;
+  }
+  for (int i = 0; i < n_pts; ++i) {
+    auto& X = ba_points_[static_cast<std::size_t>(i)];
+    X = c_fixed + s * (X - c_fixed);
+  }
+}
+
 void LiveMap::adjustWindow() {
   // Cameras: the newest ba_window keyframes free, up to ba_fixed older ones fixed (the gauge);
   // with no older keyframe, the oldest of the window is fixed.
@@ -486,8 +512,10 @@ void LiveMap::adjustWindow() {
   const int n_cams = static_cast<int>(
       std::min<int64_t>(total, static_cast<int64_t>(options_.ba_window + options_.ba_fixed)));
   if (n_cams < 2) return;
-  int n_free = std::min(options_.ba_window, n_cams);
-  if (n_free == n_cams) --n_free;
+  // Gauge: a monocular map is defined up to a similarity. With two or more fixed cameras the
+  // adjustment cannot move it; with one (the two-view start) the scale is free, so it is restored
+  // afterwards (otherwise every adjustment lets it wander and the poses already sent jump).
+  const int n_free = std::min(options_.ba_window, std::max(1, n_cams - 2));
   for (int c = 0; c < n_cams; ++c) {
     const int64_t seq = newest - c;
     ba_kf_seq_[static_cast<std::size_t>(c)] = seq;
@@ -541,6 +569,7 @@ void LiveMap::adjustWindow() {
         std::span<const BaObservation>(ba_obs_.data(), static_cast<std::size_t>(n_obs)), kk, bo);
     const bool ok = summary.status == BundleAdjustmentSummary::Status::kConverged ||
                     summary.status == BundleAdjustmentSummary::Status::kMaxIterations;
+    if (ok && n_cams - n_free == 1) restoreScale(n_cams, n_pts);
     if (ok) {
       for (int c = 0; c < n_free; ++c) {
         const auto& cam = ba_cameras_[static_cast<std::size_t>(c)];

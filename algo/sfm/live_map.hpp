@@ -26,15 +26,17 @@ struct LiveMapOptions {
   int ba_fixed = 5;        ///< older keyframes of the ring joining the adjustment as fixed cameras
   int ba_iterations = 6;
   double huber_px = 1.0;
-  double reproj_threshold_px = 2.5;     ///< PnP inlier and triangulation acceptance threshold
-  int init_min_tracks = 60;             ///< tracks common to the reference frame and the current
-  double init_min_displacement = 0.03;  ///< median track displacement (x image width) to try
-  double init_min_parallax_deg = 2.0;   ///< median parallax of the initial points
-  int init_min_points = 50;             ///< triangulated points needed to accept an initial pair
-  int init_max_gap = 90;  ///< frames after which a reference that never initialised is renewed
+  double reproj_threshold_px = 2.5;      ///< PnP inlier and triangulation acceptance threshold
+  int init_min_tracks = 60;              ///< tracks common to the reference frame and the current
+  double init_min_displacement = 0.015;  ///< median track displacement (x image width) to try
+  double init_min_parallax_deg = 2.0;    ///< median parallax of the initial points
+  int init_min_points = 50;              ///< triangulated points needed to accept an initial pair
+  int init_max_gap = 300;  ///< frames after which a reference that never initialised is renewed
   double min_point_parallax_deg = 1.0;  ///< triangulation: angle between the two rays
-  double keyframe_parallax_deg = 2.0;   ///< new keyframe at this median parallax to the last
-  int keyframe_max_gap = 30;            ///< or after this many frames
+  double keyframe_parallax_deg = 0.5;   ///< new keyframe at this median parallax to the last
+  int keyframe_max_gap = 8;             ///< or after this many frames
+  int young_map_keyframes = 16;         ///< until the map has this many keyframes ...
+  int young_map_keyframe_gap = 1;       ///< ... a keyframe every this many frames
   double keyframe_min_tracked = 0.7;  ///< or when inliers fall below this fraction of the last kf's
   int min_pnp_inliers = 15;           ///< fewer: the frame is lost
   int max_outlier_frames = 2;  ///< consecutive PnP outlier frames that detach a track's point
@@ -129,6 +131,7 @@ class LiveMap {
   void addObservation(int64_t kf_seq, int point, const Eigen::Vector2d& px);
   int triangulateNew(int64_t kf_seq);
   void adjustWindow();
+  void restoreScale(int n_cams, int n_pts);
   int allocatePoint(const Eigen::Vector3d& X);
   void collectGarbage();
   Keyframe* keyframe(int64_t seq);

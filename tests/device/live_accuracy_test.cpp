@@ -34,7 +34,8 @@ epitrack::eval::TrajectoryMetrics evaluate(const std::vector<epitrack::hal::Traj
   return m;
 }
 
-void checkLiveAgainstOffline(const std::string& synth_args, const std::string& tag) {
+void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init_frame,
+                             const std::string& tag) {
   TempDir dir(tag);
   const std::string clip = dir.file("clip");
   REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " " + synth_args + " --out " + clip +
@@ -62,7 +63,7 @@ void checkLiveAgainstOffline(const std::string& synth_args, const std::string& t
     CHECK(lines[i].status == "initializing");
   }
   INFO("initialised at frame " << first_tracking);
-  REQUIRE(first_tracking < lines.size() / 3);
+  REQUIRE(first_tracking <= max_init_frame);
   int not_tracking = 0;
   for (std::size_t i = first_tracking; i < lines.size(); ++i)
     not_tracking += lines[i].status == "tracking" ? 0 : 1;
@@ -91,12 +92,17 @@ void checkLiveAgainstOffline(const std::string& synth_args, const std::string& t
 }  // namespace
 
 TEST_CASE("Live poses on a replayed orbit are within 2x the offline solver", "[device][accuracy]") {
+  // Measured (Release, x86-64): live 0.00020, offline 0.00013 (ratio 1.6); initialised at frame 10.
   checkLiveAgainstOffline(
-      "--scene orbit --frames 150 --size 480x360 --focal 420 --target-wander 0.5", "device-orbit");
+      "--scene orbit --frames 150 --size 480x360 --focal 420 --target-wander 0.5 --quiet", 30,
+      "device-orbit");
 }
 
 TEST_CASE("Live poses on a replayed handheld clip are within 2x the offline solver",
           "[device][accuracy]") {
-  checkLiveAgainstOffline("--scene handheld --frames 150 --size 480x360 --focal 420",
+  // The handheld walk is slow (5 mm a frame, 7 m from the scene): the offline solver needs about
+  // 300 frames to find parallax, and the live map initialises at frame 80 (0.4 m of baseline).
+  // Measured: live 0.00039, offline 0.00020 (ratio 1.9).
+  checkLiveAgainstOffline("--scene handheld --frames 300 --size 480x360 --focal 420 --quiet", 100,
                           "device-handheld");
 }

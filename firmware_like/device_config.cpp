@@ -92,11 +92,12 @@ const std::map<std::string, Key>& keyTable() {
                     c.poses = v;
                     return true;
                   }};
-    t["record"] = {"record the camera frames to FILE.mjpeg (not supported yet)",
-                   [](DeviceConfig& c, const std::string& v, std::string&) {
-                     c.record = v;
-                     return true;
-                   }};
+    t["record"] = {
+        "record the camera frames: FILE.mjpeg (JPEG) or a directory (lossless PGM frames)",
+        [](DeviceConfig& c, const std::string& v, std::string&) {
+          c.record = v;
+          return true;
+        }};
     t["max_frames"] =
         intKey("stop after N frames (0: until the end)", 0, 2000000000L, &DeviceConfig::max_frames);
     t["realtime"] = {"pace replay at the nominal rate; late frames are dropped (true/false)",
@@ -278,12 +279,6 @@ bool validateConfig(const DeviceConfig& config, std::string& error) {
   }
   if (config.map.max_points < config.map.max_features) {
     error = "max_points must be at least features";
-    return false;
-  }
-  if (!config.record.empty()) {
-    error =
-        "--record is not supported yet: this build has no frame recorder in hal/ (record with "
-        "the camera's own tools, or replay a frame directory)";
     return false;
   }
   return true;

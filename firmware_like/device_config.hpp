@@ -14,7 +14,7 @@ struct DeviceConfig {
   std::string source;           ///< INPUT (ARCHITECTURE.md "Inputs")
   std::string intrinsics_path;  ///< intrinsics.txt; empty: centred pinhole with `focal`
   std::string poses = "-";      ///< pose stream: "-" standard output, or a file
-  std::string record;           ///< MJPEG recording of the frames (not supported yet)
+  std::string record;           ///< recording: FILE.mjpeg, or a directory of PGM frames
   int max_frames = 0;           ///< 0: until the stream ends or a signal
   bool realtime = false;        ///< pace replay at the nominal rate and drop late frames
   double fps = 30.0;            ///< nominal rate of sources without one (image directories)

@@ -22,6 +22,7 @@
 #include "firmware_like/pose_output.hpp"
 #include "hal/frame_source.hpp"
 #include "hal/io/text_formats.hpp"
+#include "hal/record/frame_recorder.hpp"
 
 namespace {
 
@@ -59,7 +60,8 @@ int usageError(const std::string& message) {
 void printHelp() {
   std::printf(
       "usage: epitrack-device --source INPUT [--intrinsics FILE] [--config FILE] [--poses -|FILE]\n"
-      "                       [--record FILE.mjpeg] [--max-frames N] [--realtime] [--features N]\n"
+      "                       [--record FILE.mjpeg|DIR] [--max-frames N] [--realtime] [--features "
+      "N]\n"
       "                       [--set KEY=VALUE ...]\n\n"
       "Live camera tracking on the device: one JSON line per frame (frame, t, status, features,\n"
       "q [qx,qy,qz,qw] and p [x,y,z] of T_wc when tracking, ms) and a final statistics line.\n"
@@ -161,6 +163,13 @@ int main(int argc, char** argv) {
                  "%.1f px (poses are then only as good as that guess)\n",
                  focal);
   }
+  epitrack::hal::FrameRecorder recorder;
+  if (!config.record.empty()) {
+    if (!recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      return 1;
+    }
+  }
   epitrack::device::LiveTracker tracker(config.tracker, config.map, intrinsics);
   epitrack::device::FrameStatistics stats;
 
@@ -213,6 +222,13 @@ int main(int argc, char** argv) {
     if (last_index >= 0 && frame.index > last_index + 1)
       stats.dropped += frame.index - last_index - 1;
     last_index = frame.index;
+    // Every captured frame is recorded, also those processing has to drop: the recording
+    // replays what the camera gave.
+    if (!config.record.empty() && !recorder.write(frame, error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      exit_code = 1;
+      break;
+    }
     if (config.realtime) {
       // Processing lags when this frame is more than one period older than the clock says the
       // newest is: drop it and take the next one (nothing queues beyond the source's buffers).
@@ -275,6 +291,15 @@ int main(int argc, char** argv) {
   if (out != stdout && std::fclose(out) != 0) {
     std::fprintf(stderr, "epitrack-device: closing %s failed\n", config.poses.c_str());
     exit_code = 1;
+  }
+  if (!config.record.empty()) {
+    if (!recorder.finish(error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      exit_code = 1;
+    } else {
+      std::fprintf(stderr, "epitrack-device: recorded %lld frames to %s\n",
+                   static_cast<long long>(recorder.framesWritten()), config.record.c_str());
+    }
   }
   source.reset();  // streams off, files closed
   return exit_code;

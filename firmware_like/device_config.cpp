@@ -138,6 +138,19 @@ const std::map<std::string, Key>& keyTable() {
                    [](DeviceConfig& c, const std::string& v, std::string& e) {
                      return parseInt(v, 0, 6, c.tracker.levels, e);
                    }};
+    t["lk_affine"] = {"LK with an affine template warp at the base level (else translation only)",
+                      [](DeviceConfig& c, const std::string& v, std::string& e) {
+                        return parseBool(v, c.tracker.affine, e);
+                      }};
+    t["lk_iterations"] = {"LK iterations per pyramid level",
+                          [](DeviceConfig& c, const std::string& v, std::string& e) {
+                            return parseInt(v, 1, 100, c.tracker.max_iterations, e);
+                          }};
+    t["redetect_fraction"] = {
+        "detect new features when fewer than this fraction of `features` are tracked",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseReal(v, 0.0, 1.0, c.tracker.redetect_fraction, e);
+        }};
     t["min_distance"] = {"minimum distance between features, px",
                          [](DeviceConfig& c, const std::string& v, std::string& e) {
                            return parseReal(v, 1.0, 200.0, c.tracker.min_distance, e);

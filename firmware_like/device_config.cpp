@@ -108,7 +108,7 @@ const std::map<std::string, Key>& keyTable() {
                 [](DeviceConfig& c, const std::string& v, std::string& e) {
                   return parseReal(v, 0.1, 100000.0, c.fps, e);
                 }};
-    t["focal"] = {"focal in pixels when no intrinsics are given (0: 1.2 x max(w, h))",
+    t["focal"] = {"focal in pixels when no intrinsics are given (0: self-calibrate it)",
                   [](DeviceConfig& c, const std::string& v, std::string& e) {
                     return parseReal(v, 0.0, 1e6, c.focal, e);
                   }};
@@ -210,6 +210,20 @@ const std::map<std::string, Key>& keyTable() {
                                    [](DeviceConfig& c, const std::string& v, std::string& e) {
                                      return parseInt(v, 1, 1000, c.map.young_map_keyframe_gap, e);
                                    }};
+    t["calib_pair_displacement"] = {
+        "self-calibration: median displacement (fraction of the width) that closes a frame pair",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseReal(v, 0.005, 0.5, c.map.calib_pair_displacement, e);
+        }};
+    t["calib_min_pairs"] = {"self-calibration: F pairs before a focal is accepted",
+                            [](DeviceConfig& c, const std::string& v, std::string& e) {
+                              return parseInt(v, 1, 1000, c.map.calib_min_pairs, e);
+                            }};
+    t["calib_max_frames"] = {
+        "self-calibration: frames after which the fallback focal (1.2 x max(w, h)) is used",
+        [](DeviceConfig& c, const std::string& v, std::string& e) {
+          return parseInt(v, 1, 100000000, c.map.calib_max_frames, e);
+        }};
     t["init_min_points"] = {"points the initial pair must triangulate",
                             [](DeviceConfig& c, const std::string& v, std::string& e) {
                               return parseInt(v, 8, 100000, c.map.init_min_points, e);

@@ -18,7 +18,7 @@ struct DeviceConfig {
   int max_frames = 0;           ///< 0: until the stream ends or a signal
   bool realtime = false;        ///< pace replay at the nominal rate and drop late frames
   double fps = 30.0;            ///< nominal rate of sources without one (image directories)
-  double focal = 0.0;           ///< focal without intrinsics (0: 1.2 x max(width, height))
+  double focal = 0.0;           ///< focal without intrinsics (0: self-calibrated)
   int warmup_frames = 10;       ///< frames left out of the timing statistics
   FeatureTrackerOptions tracker;
   LiveMapOptions map;

@@ -154,15 +154,21 @@ int main(int argc, char** argv) {
                    intrinsics.width, intrinsics.height, info.width, info.height);
       return 1;
     }
+  } else if (config.focal > 0.0) {
+    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, config.focal);
   } else {
-    const double focal =
-        config.focal > 0.0 ? config.focal : 1.2 * std::max(info.width, info.height);
-    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, focal);
-    std::fprintf(stderr,
-                 "epitrack-device: no intrinsics given; assuming a centred pinhole with focal "
-                 "%.1f px (poses are then only as good as that guess)\n",
-                 focal);
+    // Self-calibration over the first seconds (centred pinhole, square pixels); the focal here
+    // is only a placeholder until then.
+    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height,
+                                                      1.2 * std::max(info.width, info.height));
+    config.map.self_calibrate = true;
+    std::fprintf(
+        stderr,
+        "epitrack-device: no intrinsics given: the focal is self-calibrated from the first "
+        "seconds of motion (centred pinhole)\n");
   }
+  const char* focal_source =
+      !config.intrinsics_path.empty() || config.focal > 0.0 ? "given" : "none yet";
   epitrack::hal::FrameRecorder recorder;
   if (!config.record.empty()) {
     if (!recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
@@ -265,6 +271,12 @@ int main(int argc, char** argv) {
         break;
     }
     if (result.map.initialized) ++stats.initializations;
+    if (result.map.calibrated) {
+      focal_source = tracker.map().focalFallback() ? "fallback" : "self-calibrated";
+      std::fprintf(stderr, "epitrack-device: frame %lld: focal %s: %.1f px (%d pairs)\n",
+                   static_cast<long long>(frame.index), focal_source, tracker.map().intrinsics().fx,
+                   tracker.map().calibrationPairs());
+    }
     if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
     const int n = epitrack::device::formatPoseLine(line, sizeof(line), frame.index,
                                                    frame.timestamp_s, result.map.status,
@@ -277,12 +289,15 @@ int main(int argc, char** argv) {
                "{\"summary\": true, \"frames\": %lld, \"tracked\": %lld, \"initializing\": %lld, "
                "\"lost\": %lld, \"dropped\": %lld, \"corrupt\": %lld, \"initializations\": %lld, "
                "\"timed_frames\": %lld, \"ms_median\": %.3f, \"ms_p95\": %.3f, \"ms_max\": %.3f, "
-               "\"peak_rss_kib\": %ld, \"stopped_by\": \"%s\"}\n",
+               "\"focal_px\": %.3f, \"focal_source\": \"%s\", \"peak_rss_kib\": %ld, "
+               "\"stopped_by\": \"%s\"}\n",
                static_cast<long long>(stats.frames), static_cast<long long>(stats.tracking),
                static_cast<long long>(stats.initializing), static_cast<long long>(stats.lost),
                static_cast<long long>(stats.dropped), static_cast<long long>(stats.corrupt),
                static_cast<long long>(stats.initializations), static_cast<long long>(stats.timed()),
-               stats.percentile(0.5), stats.percentile(0.95), stats.maxMs(), peakResidentKib(),
+               stats.percentile(0.5), stats.percentile(0.95), stats.maxMs(),
+               tracker.map().focalKnown() ? tracker.map().intrinsics().fx : 0.0, focal_source,
+               peakResidentKib(),
                g_stop_signal == SIGINT    ? "SIGINT"
                : g_stop_signal == SIGTERM ? "SIGTERM"
                : exit_code != 0           ? "error"

@@ -38,7 +38,8 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
       fundamental_(std::max(8, options.max_features)),
       pnp_(std::max(4, options.max_features)),
       ba_(options.ba_window + options.ba_fixed, options.max_points,
-          (options.ba_window + options.ba_fixed) * options.max_features) {
+          (options.ba_window + options.ba_fixed) * options.max_features),
+      homography_(std::max(8, options.max_features)) {
   EPITRACK_ASSERT(options.max_features > 0 && options.max_points > 0);
   EPITRACK_ASSERT(options.max_keyframes >= 2 && options.ba_window >= 2);
   EPITRACK_ASSERT(options.ba_window + options.ba_fixed <= options.max_keyframes);
@@ -68,6 +69,16 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
   ba_point_index_.resize(np);
   ba_slot_of_point_.assign(np, -1);
   ba_obs_.resize(nba * nf);
+  if (options.self_calibrate) {
+    EPITRACK_ASSERT(options.calib_references >= 1 && options.calib_max_pairs >= 1);
+    const auto nr = static_cast<std::size_t>(options.calib_references);
+    calib_refs_.resize(nr);
+    calib_ids_.resize(nr * nf);
+    calib_px_.resize(nr * nf);
+    calib_F_.resize(static_cast<std::size_t>(options.calib_max_pairs));
+    calib_per_pair_.resize(static_cast<std::size_t>(options.calib_max_pairs));
+    state_ = State::kCalibrating;
+  }
   reset();
 }
 
@@ -86,11 +97,15 @@ std::size_t LiveMap::reservedBytes() const {
        ba_kf_seq_.capacity() * sizeof(int64_t);
   b += ba_points_.capacity() * sizeof(Eigen::Vector3d) + ba_point_index_.capacity() * sizeof(int) +
        ba_slot_of_point_.capacity() * sizeof(int) + ba_obs_.capacity() * sizeof(BaObservation);
+  b += calib_refs_.capacity() * sizeof(CalibReference) + calib_ids_.capacity() * sizeof(int32_t) +
+       calib_px_.capacity() * sizeof(Eigen::Vector2d) +
+       calib_F_.capacity() * sizeof(Eigen::Matrix3d) +
+       calib_per_pair_.capacity() * sizeof(FocalPairEstimate);
   return b;
 }
 
 void LiveMap::reset() {
-  state_ = State::kInitializing;
+  if (state_ != State::kCalibrating) state_ = State::kInitializing;
   ref_frame_ = -1;
   for (int i = 0; i < record_count_; ++i) {
     auto& r = records_[static_cast<std::size_t>(i)];
@@ -183,7 +198,11 @@ void LiveMap::mergeTracks(std::span<const TrackedFeature> features) {
 LiveFrameResult LiveMap::process(std::span<const TrackedFeature> features) {
   LiveFrameResult result;
   mergeTracks(features);
-  if (state_ == State::kInitializing) {
+  if (state_ == State::kCalibrating) {
+    result.status = LiveStatus::kInitializing;
+    result.calibrated = calibrateStep();
+    if (result.calibrated) state_ = State::kInitializing;  // the map starts from the next frame
+  } else if (state_ == State::kInitializing) {
     result.status = LiveStatus::kInitializing;
     if (tryInitialize(result)) {
       state_ = State::kTracking;
@@ -211,6 +230,103 @@ void LiveMap::setReference() {
     r.ref_n = r.n;
     r.ref_px = r.px;
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Focal self-calibration (paper §5.2), causal: up to calib_references reference frames are
+// followed at once (a new one every calib_reference_interval frames); a reference whose tracks
+// have moved by calib_pair_displacement closes a pair: F and H by RANSAC, GRIC model selection,
+// and an F pair (general motion, 3D scene) joins the ring of F matrices. From calib_min_pairs on,
+// the pairs' cost curves are minimised jointly (calibrateFocalMultiPair); an observable focal ends
+// the calibration. Pixels are used as they come: without intrinsics there is no distortion model.
+
+bool LiveMap::calibrateStep() {
+  const auto nf = static_cast<std::size_t>(options_.max_features);
+  const int nr = options_.calib_references;
+  // Start a new reference when a slot is free and the interval has passed.
+  int64_t newest = -1;
+  int free_slot = -1;
+  for (int k = 0; k < nr; ++k) {
+    const auto& ref = calib_refs_[static_cast<std::size_t>(k)];
+    if (ref.frame < 0) {
+      if (free_slot < 0) free_slot = k;
+    } else {
+      newest = std::max(newest, ref.frame);
+    }
+  }
+  if (free_slot >= 0 && (newest < 0 || frame_ - newest >= options_.calib_reference_interval)) {
+    auto& ref = calib_refs_[static_cast<std::size_t>(free_slot)];
+    ref.frame = frame_;
+    ref.count = record_count_;
+    const std::size_t base = static_cast<std::size_t>(free_slot) * nf;
+    for (int i = 0; i < record_count_; ++i) {
+      calib_ids_[base + static_cast<std::size_t>(i)] = records_[static_cast<std::size_t>(i)].id;
+      calib_px_[base + static_cast<std::size_t>(i)] = records_[static_cast<std::size_t>(i)].px;
+    }
+  }
+  bool added = false;
+  for (int k = 0; k < nr; ++k) {
+    auto& ref = calib_refs_[static_cast<std::size_t>(k)];
+    if (ref.frame < 0 || ref.frame == frame_) continue;
+    // Common tracks: both lists are sorted by id.
+    const std::size_t base = static_cast<std::size_t>(k) * nf;
+    int common = 0;
+    int a = 0;
+    for (int i = 0; i < record_count_ && a < ref.count; ++i) {
+      const auto& r = records_[static_cast<std::size_t>(i)];
+      while (a < ref.count && calib_ids_[base + static_cast<std::size_t>(a)] < r.id) ++a;
+      if (a < ref.count && calib_ids_[base + static_cast<std::size_t>(a)] == r.id) {
+        const auto c = static_cast<std::size_t>(common++);
+        x1_[c] = calib_px_[base + static_cast<std::size_t>(a)];
+        x2_[c] = r.px;
+        scratch_[c] = (x2_[c] - x1_[c]).norm();
+      }
+    }
+    if (common < options_.init_min_tracks) {  // the reference faded out before moving enough
+      ref.frame = -1;
+      continue;
+    }
+    const double disp =
+        median(std::span<double>(scratch_.data(), static_cast<std::size_t>(common)));
+    if (disp < options_.calib_pair_displacement * K_.width) continue;
+    ref.frame = -1;  // the pair is closed either way
+    FundamentalOptions fo;
+    fo.ransac.seed = options_.seed + static_cast<uint64_t>(frame_);
+    const auto nc = static_cast<std::size_t>(common);
+    const auto r =
+        estimateFocalFromMatches(std::span<const Eigen::Vector2d>(x1_.data(), nc),
+                                 std::span<const Eigen::Vector2d>(x2_.data(), nc), K_.width,
+                                 K_.height, fundamental_, homography_, 0.5, fo);
+    if (r.model != PairModel::kFundamental) continue;
+    calib_F_[static_cast<std::size_t>(calib_pairs_total_ % options_.calib_max_pairs)] = r.F;
+    ++calib_pairs_total_;
+    added = true;
+  }
+  if (frame_ >= options_.calib_max_frames) {
+    // Critical or too little motion so far (the focal is not observable): go on with a guess
+    // rather than never tracking; the device reports the focal source.
+    const double f = options_.fallback_focal_widths * std::max(K_.width, K_.height);
+    K_ = CameraIntrinsics::centered(K_.width, K_.height, f);
+    calib_fallback_ = true;
+    ref_frame_ = -1;
+    return true;
+  }
+  if (!added || calib_pairs_total_ < options_.calib_min_pairs) return false;
+  const auto n = static_cast<std::size_t>(
+      std::min<int64_t>(calib_pairs_total_, static_cast<int64_t>(options_.calib_max_pairs)));
+  const auto c =
+      calibrateFocalMultiPair(std::span<const Eigen::Matrix3d>(calib_F_.data(), n), K_.width,
+                              K_.height, std::span<FocalPairEstimate>(calib_per_pair_.data(), n));
+  if (!c.observable || c.coherent_pairs < options_.calib_min_pairs) return false;
+  K_.fx = c.focal_px;
+  K_.fy = c.focal_px;
+  K_.cx = 0.5 * (K_.width - 1);
+  K_.cy = 0.5 * (K_.height - 1);
+  K_.k1 = 0.0;
+  K_.k2 = 0.0;
+  calib_pairs_used_ = static_cast<int>(n);
+  ref_frame_ = -1;
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -9,7 +9,9 @@
 
 #include "algo/geometry/camera_intrinsics.hpp"
 #include "algo/geometry/essential.hpp"
+#include "algo/geometry/focal_self_calibration.hpp"
 #include "algo/geometry/fundamental.hpp"
+#include "algo/geometry/homography.hpp"
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
@@ -41,6 +43,17 @@ struct LiveMapOptions {
   int min_pnp_inliers = 15;           ///< fewer: the frame is lost
   int max_outlier_frames = 2;  ///< consecutive PnP outlier frames that detach a track's point
   uint64_t seed = 1;
+  // Focal self-calibration (paper §5.2) before the map, when the intrinsics are not given: the
+  // camera is taken as a centred pinhole (fx = fy = f, principal point at the image centre) and f
+  // is estimated from the fundamental matrices of frame pairs over the first seconds.
+  bool self_calibrate = false;
+  int calib_references = 8;               ///< reference frames followed at once
+  int calib_reference_interval = 10;      ///< frames between new references
+  double calib_pair_displacement = 0.04;  ///< median displacement (x width) that closes a pair
+  int calib_min_pairs = 5;                ///< F pairs before a focal is accepted
+  int calib_max_pairs = 24;               ///< a ring: the newest pairs are kept
+  int calib_max_frames = 450;             ///< no observable focal by then: the fallback focal
+  double fallback_focal_widths = 1.2;     ///< fallback focal, x max(width, height)
 };
 
 enum class LiveStatus { kInitializing, kTracking, kLost };
@@ -54,6 +67,7 @@ struct LiveFrameResult {
   int inliers = 0;           ///< PnP inliers (tracking)
   bool keyframe = false;     ///< this frame became a keyframe
   bool initialized = false;  ///< the map was (re)initialised on this frame
+  bool calibrated = false;   ///< calibration ended on this frame (self-calibrated or fallback)
   int points = 0;            ///< map points in use after the frame
 };
 
@@ -83,11 +97,19 @@ class LiveMap {
   [[nodiscard]] int keyframeCount() const { return static_cast<int>(kf_next_seq_ - kf_first_seq_); }
   [[nodiscard]] bool initialized() const { return state_ == State::kTracking; }
   [[nodiscard]] const LiveMapOptions& options() const { return options_; }
+  /// The intrinsics in use (the self-calibrated focal once `focalKnown`).
+  [[nodiscard]] const CameraIntrinsics& intrinsics() const { return K_; }
+  /// False while self-calibration has not produced a focal yet.
+  [[nodiscard]] bool focalKnown() const { return state_ != State::kCalibrating; }
+  /// Pairs the self-calibration used (0 with given intrinsics).
+  [[nodiscard]] int calibrationPairs() const { return calib_pairs_used_; }
+  /// True when self-calibration gave up (no observable focal within calib_max_frames).
+  [[nodiscard]] bool focalFallback() const { return calib_fallback_; }
   /// Bytes reserved by this object's buffers (for the memory report).
   [[nodiscard]] std::size_t reservedBytes() const;
 
  private:
-  enum class State { kInitializing, kTracking };
+  enum class State { kCalibrating, kInitializing, kTracking };
   struct TrackRecord {
     int32_t id = 0;
     int point = -1;                 // map point of this track, -1 none
@@ -122,6 +144,7 @@ class LiveMap {
   };
 
   void mergeTracks(std::span<const TrackedFeature> features);
+  bool calibrateStep();
   [[nodiscard]] Eigen::Vector2d normalize(double x, double y) const;
   void setReference();
   bool tryInitialize(LiveFrameResult& result);
@@ -174,6 +197,20 @@ class LiveMap {
   std::vector<int> ba_point_index_;    // pool index of each adjusted point
   std::vector<int> ba_slot_of_point_;  // max_points, -1 when not in the adjustment
   std::vector<BaObservation> ba_obs_;
+  // Self-calibration: a ring of reference frames (tracks sorted by id) and of F matrices.
+  struct CalibReference {
+    int64_t frame = -1;
+    int count = 0;
+  };
+  HomographyRansac homography_;
+  std::vector<CalibReference> calib_refs_;
+  std::vector<int32_t> calib_ids_;         // calib_references x max_features
+  std::vector<Eigen::Vector2d> calib_px_;  // calib_references x max_features
+  std::vector<Eigen::Matrix3d> calib_F_;   // calib_max_pairs
+  std::vector<FocalPairEstimate> calib_per_pair_;
+  int64_t calib_pairs_total_ = 0;
+  int calib_pairs_used_ = 0;
+  bool calib_fallback_ = false;
 };
 
 }  // namespace epitrack

@@ -76,4 +76,27 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
   CHECK(keyframes >= 10);
   CHECK(tracking > 400);
   CHECK(allocations == 0);
+
+  // Without intrinsics: self-calibration (F and H RANSAC per pair, the multi-pair focal search)
+  // and then the same loop, still without allocation.
+  mo.self_calibrate = true;
+  const auto K_guess = epitrack::CameraIntrinsics::centered(kWidth, kHeight, 1.2 * kWidth);
+  epitrack::device::LiveTracker selfcal(to, mo, K_guess);
+  std::size_t sc_allocations = 0;
+  int calibrated_at = -1;
+  int sc_tracking = 0;
+  for (int i = 0; i < 250; ++i) {
+    AllocationScope scope;
+    REQUIRE(selfcal.process(frames[static_cast<std::size_t>(i)].constView(), out) ==
+            epitrack::device::LiveTracker::Status::kOk);
+    if (i >= kWarmup) sc_allocations += scope.count();
+    if (out.map.calibrated) calibrated_at = i;
+    sc_tracking += out.map.status == epitrack::LiveStatus::kTracking ? 1 : 0;
+  }
+  std::printf("device alloc, self-calibrated: focal %.1f (true %.1f) at frame %d, %d tracking\n",
+              selfcal.map().intrinsics().fx, so.focal, calibrated_at, sc_tracking);
+  CHECK(calibrated_at > 0);
+  CHECK_FALSE(selfcal.map().focalFallback());
+  CHECK(sc_tracking > 100);
+  CHECK(sc_allocations == 0);
 }

@@ -62,10 +62,12 @@ void printHelp() {
       "usage: epitrack-device --source INPUT [--intrinsics FILE] [--config FILE] [--poses -|FILE]\n"
       "                       [--record FILE.mjpeg|DIR] [--max-frames N] [--realtime] [--features "
       "N]\n"
-      "                       [--set KEY=VALUE ...]\n\n"
+      "                       [--focal PX] [--set KEY=VALUE ...]\n\n"
       "Live camera tracking on the device: one JSON line per frame (frame, t, status, features,\n"
       "q [qx,qy,qz,qw] and p [x,y,z] of T_wc when tracking, ms) and a final statistics line.\n"
-      "All memory is reserved before the first frame. SIGINT/SIGTERM stop cleanly.\n\n"
+      "All memory is reserved before the first frame. SIGINT/SIGTERM stop cleanly. Without\n"
+      "--intrinsics or --focal the focal is self-calibrated over the first seconds of motion.\n"
+      "A camera (v4l2:) always drops frames it cannot keep up with; a replay with --realtime.\n\n"
       "Options map to configuration keys (--max-frames is max_frames, ...). --config FILE reads\n"
       "'key = value' lines (# comments); the command line wins over the file. Keys:\n");
   for (const auto& [key, help] : epitrack::device::configKeys())
@@ -109,8 +111,8 @@ int main(int argc, char** argv) {
       if (eq == std::string::npos || eq == 0) return usageError("--set expects KEY=VALUE");
       overrides.emplace_back(value.substr(0, eq), value.substr(eq + 1));
     } else {
-      static const char* const kOptions[] = {"source", "intrinsics", "poses",
-                                             "record", "max-frames", "features"};
+      static const char* const kOptions[] = {"source",     "intrinsics", "poses", "record",
+                                             "max-frames", "features",   "focal"};
       bool known = false;
       for (const char* o : kOptions) known = known || name == o;
       if (!known) return usageError("unknown option '--" + name + "'");
@@ -200,6 +202,10 @@ int main(int argc, char** argv) {
 
   // ---- the loop ----
   const double fps = info.fps > 0.0 ? info.fps : config.fps;
+  // Late frames are dropped from a live camera always, from a replay with --realtime: a frame more
+  // than one period behind the clock is skipped, so the backlog never exceeds the driver's own
+  // (fixed) buffer ring.
+  const bool pace = config.realtime || config.source.rfind("v4l2:", 0) == 0;
   const double period_s = 1.0 / fps;
   bool have_first = false;
   double first_t = 0.0;
@@ -235,7 +241,7 @@ int main(int argc, char** argv) {
       exit_code = 1;
       break;
     }
-    if (config.realtime) {
+    if (pace) {
       // Processing lags when this frame is more than one period older than the clock says the
       // newest is: drop it and take the next one (nothing queues beyond the source's buffers).
       const auto now = std::chrono::steady_clock::now();

@@ -42,6 +42,7 @@ int runDevice(int argc, const char* const* argv) {
   int frames_wanted = 300;
   int warmup = 30;
   double focal = 0.0;
+  std::string lk_affine = "true";
   tools::CommandLine cl(
       "epitrack-bench device",
       "[INPUT --intrinsics FILE] [--size WxH] [--scene orbit|handheld|...] [--features N] "
@@ -63,6 +64,12 @@ int runDevice(int argc, const char* const* argv) {
   cl.integer("repeat", "N", "passes, each with a fresh map (default 3)", &repeat, 1, 1000);
   cl.integer("threads", "N", "threads (only 1 is supported: every figure is single-core)", &threads,
              1, 1);
+  FeatureTrackerOptions to;
+  cl.integer("window", "PX", "LK window side (default 21; pi4.conf: 15)", &to.window, 5, 61);
+  cl.choice("lk-affine", {"true", "false"}, "affine LK at the base level (default true)",
+            &lk_affine);
+  cl.real("redetect-fraction", "F", "re-detect below this fraction of features (default 0.9)",
+          &to.redetect_fraction, 0.0, 1.0);
   if (const auto r = cl.parse(argc, argv); r != tools::CommandLine::Result::kOk)
     return tools::CommandLine::exitCode(r);
 
@@ -102,8 +109,8 @@ int runDevice(int argc, const char* const* argv) {
     }
     K = CameraIntrinsics::centered(so.width, so.height, so.focal);
   }
-  FeatureTrackerOptions to;
   to.max_features = features;
+  to.affine = lk_affine == "true";
   LiveMapOptions mo;
   mo.max_features = features;
 
@@ -146,6 +153,8 @@ int runDevice(int argc, const char* const* argv) {
       .add("cpu_ms_max", c.max)
       .add("frames", timed)
       .add("features", features)
+      .add("window", to.window)
+      .add("lk_affine", to.affine)
       .add("width", K.width)
       .add("height", K.height)
       .add("tracking_frames", tracking)

@@ -1,0 +1,42 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "algo/sfm/live_map.hpp"
+#include "algo/tracking/feature_tracker.hpp"
+
+namespace epitrack::device {
+
+/// Everything epitrack-device needs, read once before any frame: the command line and an optional
+/// `key = value` file (the command line wins). Capacities here size every buffer of the loop.
+struct DeviceConfig {
+  std::string source;           ///< INPUT (ARCHITECTURE.md "Inputs")
+  std::string intrinsics_path;  ///< intrinsics.txt; empty: centred pinhole with `focal`
+  std::string poses = "-";      ///< pose stream: "-" standard output, or a file
+  std::string record;           ///< recording: FILE.mjpeg, or a directory of PGM frames
+  int max_frames = 0;           ///< 0: until the stream ends or a signal
+  bool realtime = false;        ///< pace replay at the nominal rate and drop late frames
+  double fps = 30.0;            ///< nominal rate of sources without one (image directories)
+  double focal = 0.0;           ///< focal without intrinsics (0: self-calibrated)
+  int warmup_frames = 10;       ///< frames left out of the timing statistics
+  FeatureTrackerOptions tracker;
+  LiveMapOptions map;
+};
+
+/// One `key value` pair (keys as in `configKeys()`); false with `error` on an unknown key or a
+/// bad value.
+bool applyConfigValue(DeviceConfig& config, const std::string& key, const std::string& value,
+                      std::string& error);
+
+/// A configuration file: `key = value` lines, `#` comments, blank lines. Errors name the line.
+bool applyConfigText(DeviceConfig& config, const std::string& text, const std::string& origin,
+                     std::string& error);
+
+/// Checks across keys (capacities that must agree); false with `error`.
+bool validateConfig(const DeviceConfig& config, std::string& error);
+
+/// Every accepted key with a one-line description (for --help and the README).
+const std::vector<std::pair<std::string, std::string>>& configKeys();
+
+}  // namespace epitrack::device

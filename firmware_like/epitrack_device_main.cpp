@@ -1,0 +1,327 @@
+// epitrack-device: the on-device live tracker (ARCHITECTURE.md "Commands"). Configuration is read
+// once; every buffer is reserved before the first frame; the loop then runs frame source ->
+// FeatureTracker -> LiveMap -> one JSON line per frame, without heap allocation, until the stream
+// ends, --max-frames is reached, or SIGINT/SIGTERM asks it to stop (a final statistics line).
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "algo/geometry/camera_intrinsics.hpp"
+#include "firmware_like/device_config.hpp"
+#include "firmware_like/frame_statistics.hpp"
+#include "firmware_like/live_tracker.hpp"
+#include "firmware_like/pose_output.hpp"
+#include "hal/frame_source.hpp"
+#include "hal/io/text_formats.hpp"
+#include "hal/record/frame_recorder.hpp"
+
+namespace {
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void onStopSignal(int signal_number) { g_stop_signal = signal_number; }
+
+void installSignalHandlers() {
+  struct sigaction action {};
+  action.sa_handler = onStopSignal;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = 0;  // no SA_RESTART: a blocking capture returns and the loop sees the flag
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+/// Peak resident set size (VmHWM) in KiB, or -1.
+long peakResidentKib() {
+  std::FILE* f = std::fopen("/proc/self/status", "r");
+  if (f == nullptr) return -1;
+  char line[256];
+  long kib = -1;
+  while (std::fgets(line, sizeof(line), f) != nullptr) {
+    if (std::strncmp(line, "VmHWM:", 6) == 0) kib = std::strtol(line + 6, nullptr, 10);
+  }
+  std::fclose(f);
+  return kib;
+}
+
+int usageError(const std::string& message) {
+  std::fprintf(stderr, "epitrack-device: %s (see --help)\n", message.c_str());
+  return 2;
+}
+
+void printHelp() {
+  std::printf(
+      "usage: epitrack-device --source INPUT [--intrinsics FILE] [--config FILE] [--poses -|FILE]\n"
+      "                       [--record FILE.mjpeg|DIR] [--max-frames N] [--realtime] [--features "
+      "N]\n"
+      "                       [--focal PX] [--set KEY=VALUE ...]\n\n"
+      "Live camera tracking on the device: one JSON line per frame (frame, t, status, features,\n"
+      "q [qx,qy,qz,qw] and p [x,y,z] of T_wc when tracking, ms) and a final statistics line.\n"
+      "All memory is reserved before the first frame. SIGINT/SIGTERM stop cleanly. Without\n"
+      "--intrinsics or --focal the focal is self-calibrated over the first seconds of motion.\n"
+      "A camera (v4l2:) always drops frames it cannot keep up with; a replay with --realtime.\n\n"
+      "Options map to configuration keys (--max-frames is max_frames, ...). --config FILE reads\n"
+      "'key = value' lines (# comments); the command line wins over the file. Keys:\n");
+  for (const auto& [key, help] : epitrack::device::configKeys())
+    std::printf("  %-22s %s\n", key.c_str(), help.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using epitrack::device::DeviceConfig;
+  // ---- configuration, read once: command line (as key/value pairs), then the file under it ----
+  std::vector<std::pair<std::string, std::string>> overrides;
+  std::string config_path;
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      printHelp();
+      return 0;
+    }
+    if (arg.rfind("--", 0) != 0) return usageError("unexpected argument '" + arg + "'");
+    std::string name = arg.substr(2);
+    std::string value;
+    bool have_value = false;
+    if (const auto eq = name.find('='); eq != std::string::npos) {
+      value = name.substr(eq + 1);
+      name = name.substr(0, eq);
+      have_value = true;
+    }
+    if (name == "realtime") {
+      overrides.emplace_back("realtime", have_value ? value : "true");
+      continue;
+    }
+    if (!have_value) {
+      if (i + 1 >= argc) return usageError("--" + name + " needs a value");
+      value = argv[++i];
+    }
+    if (name == "config") {
+      config_path = value;
+    } else if (name == "set") {
+      const auto eq = value.find('=');
+      if (eq == std::string::npos || eq == 0) return usageError("--set expects KEY=VALUE");
+      overrides.emplace_back(value.substr(0, eq), value.substr(eq + 1));
+    } else {
+      static const char* const kOptions[] = {"source",     "intrinsics", "poses", "record",
+                                             "max-frames", "features",   "focal"};
+      bool known = false;
+      for (const char* o : kOptions) known = known || name == o;
+      if (!known) return usageError("unknown option '--" + name + "'");
+      std::string key = name;
+      for (auto& c : key)
+        if (c == '-') c = '_';
+      overrides.emplace_back(key, value);
+    }
+  }
+  DeviceConfig config;
+  std::string error;
+  if (!config_path.empty()) {
+    std::string text;
+    if (!epitrack::hal::readTextFile(config_path, text, error)) return usageError(error);
+    if (!epitrack::device::applyConfigText(config, text, config_path, error))
+      return usageError(error);
+  }
+  for (const auto& [key, value] : overrides) {
+    if (!epitrack::device::applyConfigValue(config, key, value, error)) return usageError(error);
+  }
+  if (!epitrack::device::validateConfig(config, error)) return usageError(error);
+
+  // ---- everything reserved before the first frame ----
+  epitrack::hal::SourceOptions source_options;
+  source_options.realtime = config.realtime;
+  source_options.default_fps = config.fps;
+  auto source = epitrack::hal::openFrameSource(config.source, source_options, error);
+  if (!source) {
+    std::fprintf(stderr, "epitrack-device: %s\n", error.c_str());
+    return 1;
+  }
+  const auto& info = source->info();
+  epitrack::CameraIntrinsics intrinsics;
+  if (!config.intrinsics_path.empty()) {
+    if (!epitrack::hal::readIntrinsicsFile(config.intrinsics_path, intrinsics, error)) {
+      std::fprintf(stderr, "epitrack-device: %s\n", error.c_str());
+      return 1;
+    }
+    if (intrinsics.width != info.width || intrinsics.height != info.height) {
+      std::fprintf(stderr, "epitrack-device: intrinsics are for %dx%d, the source gives %dx%d\n",
+                   intrinsics.width, intrinsics.height, info.width, info.height);
+      return 1;
+    }
+  } else if (config.focal > 0.0) {
+    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, config.focal);
+  } else {
+    // Self-calibration over the first seconds (centred pinhole, square pixels); the focal here
+    // is only a placeholder until then.
+    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height,
+                                                      1.2 * std::max(info.width, info.height));
+    config.map.self_calibrate = true;
+    std::fprintf(
+        stderr,
+        "epitrack-device: no intrinsics given: the focal is self-calibrated from the first "
+        "seconds of motion (centred pinhole)\n");
+  }
+  const char* focal_source =
+      !config.intrinsics_path.empty() || config.focal > 0.0 ? "given" : "none yet";
+  epitrack::hal::FrameRecorder recorder;
+  if (!config.record.empty()) {
+    if (!recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      return 1;
+    }
+  }
+  epitrack::device::LiveTracker tracker(config.tracker, config.map, intrinsics);
+  epitrack::device::FrameStatistics stats;
+
+  std::FILE* out = stdout;
+  if (config.poses != "-") {
+    out = std::fopen(config.poses.c_str(), "w");
+    if (out == nullptr) {
+      std::fprintf(stderr, "epitrack-device: cannot write %s: %s\n", config.poses.c_str(),
+                   std::strerror(errno));
+      return 1;
+    }
+  }
+  static char out_buffer[1 << 16];
+  std::setvbuf(out, out_buffer, _IOLBF, sizeof(out_buffer));  // one line at a time, no malloc
+  char line[512];
+  std::fprintf(stderr,
+               "epitrack-device: %s %dx%d (%s, %.1f fps), %d features, map %.1f MiB reserved\n",
+               config.source.c_str(), info.width, info.height, info.pixel_format.c_str(),
+               info.fps > 0.0 ? info.fps : config.fps, config.tracker.max_features,
+               static_cast<double>(tracker.map().reservedBytes()) / (1024.0 * 1024.0));
+  installSignalHandlers();
+
+  // ---- the loop ----
+  const double fps = info.fps > 0.0 ? info.fps : config.fps;
+  // Late frames are dropped from a live camera always, from a replay with --realtime: a frame more
+  // than one period behind the clock is skipped, so the backlog never exceeds the driver's own
+  // (fixed) buffer ring.
+  const bool pace = config.realtime || config.source.rfind("v4l2:", 0) == 0;
+  const double period_s = 1.0 / fps;
+  bool have_first = false;
+  double first_t = 0.0;
+  std::chrono::steady_clock::time_point first_wall{};
+  int64_t last_index = -1;
+  int exit_code = 0;
+  epitrack::hal::Frame frame;
+  epitrack::device::LiveFrameOutput result;
+  while (g_stop_signal == 0 && (config.max_frames == 0 || stats.frames < config.max_frames)) {
+    const auto status = source->next(frame);
+    if (status == epitrack::hal::FrameStatus::kTimeout) continue;
+    if (status == epitrack::hal::FrameStatus::kCorruptFrame) {
+      ++stats.corrupt;
+      continue;
+    }
+    if (status == epitrack::hal::FrameStatus::kEndOfStream) break;
+    if (status == epitrack::hal::FrameStatus::kDeviceLost ||
+        status == epitrack::hal::FrameStatus::kError) {
+      if (g_stop_signal != 0) break;  // interrupted capture
+      std::fprintf(stderr, "epitrack-device: %s: %s\n", epitrack::hal::frameStatusName(status),
+                   source->lastError().c_str());
+      exit_code = 1;
+      break;
+    }
+    // Frames the source skipped (a live driver overwrote them) count as dropped.
+    if (last_index >= 0 && frame.index > last_index + 1)
+      stats.dropped += frame.index - last_index - 1;
+    last_index = frame.index;
+    // Every captured frame is recorded, also those processing has to drop: the recording
+    // replays what the camera gave.
+    if (!config.record.empty() && !recorder.write(frame, error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      exit_code = 1;
+      break;
+    }
+    if (pace) {
+      // Processing lags when this frame is more than one period older than the clock says the
+      // newest is: drop it and take the next one (nothing queues beyond the source's buffers).
+      const auto now = std::chrono::steady_clock::now();
+      if (!have_first) {
+        have_first = true;
+        first_t = frame.timestamp_s;
+        first_wall = now;
+      } else {
+        const double wall = std::chrono::duration<double>(now - first_wall).count();
+        if (wall - (frame.timestamp_s - first_t) > period_s) {
+          ++stats.dropped;
+          continue;
+        }
+      }
+    }
+    if (tracker.process(frame.luma, result) != epitrack::device::LiveTracker::Status::kOk) {
+      std::fprintf(stderr, "epitrack-device: frame %lld is %dx%d, expected %dx%d\n",
+                   static_cast<long long>(frame.index), frame.luma.width, frame.luma.height,
+                   intrinsics.width, intrinsics.height);
+      exit_code = 1;
+      break;
+    }
+    ++stats.frames;
+    switch (result.map.status) {
+      case epitrack::LiveStatus::kTracking:
+        ++stats.tracking;
+        break;
+      case epitrack::LiveStatus::kInitializing:
+        ++stats.initializing;
+        break;
+      case epitrack::LiveStatus::kLost:
+        ++stats.lost;
+        break;
+    }
+    if (result.map.initialized) ++stats.initializations;
+    if (result.map.calibrated) {
+      focal_source = tracker.map().focalFallback() ? "fallback" : "self-calibrated";
+      std::fprintf(stderr, "epitrack-device: frame %lld: focal %s: %.1f px (%d pairs)\n",
+                   static_cast<long long>(frame.index), focal_source, tracker.map().intrinsics().fx,
+                   tracker.map().calibrationPairs());
+    }
+    if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
+    const int n = epitrack::device::formatPoseLine(line, sizeof(line), frame.index,
+                                                   frame.timestamp_s, result.map.status,
+                                                   result.features, result.map.pose, result.ms);
+    if (n > 0) std::fwrite(line, 1, static_cast<std::size_t>(n), out);
+  }
+
+  // ---- final statistics (also after SIGINT/SIGTERM) ----
+  std::fprintf(out,
+               "{\"summary\": true, \"frames\": %lld, \"tracked\": %lld, \"initializing\": %lld, "
+               "\"lost\": %lld, \"dropped\": %lld, \"corrupt\": %lld, \"initializations\": %lld, "
+               "\"timed_frames\": %lld, \"ms_median\": %.3f, \"ms_p95\": %.3f, \"ms_max\": %.3f, "
+               "\"focal_px\": %.3f, \"focal_source\": \"%s\", \"peak_rss_kib\": %ld, "
+               "\"stopped_by\": \"%s\"}\n",
+               static_cast<long long>(stats.frames), static_cast<long long>(stats.tracking),
+               static_cast<long long>(stats.initializing), static_cast<long long>(stats.lost),
+               static_cast<long long>(stats.dropped), static_cast<long long>(stats.corrupt),
+               static_cast<long long>(stats.initializations), static_cast<long long>(stats.timed()),
+               stats.percentile(0.5), stats.percentile(0.95), stats.maxMs(),
+               tracker.map().focalKnown() ? tracker.map().intrinsics().fx : 0.0, focal_source,
+               peakResidentKib(),
+               g_stop_signal == SIGINT    ? "SIGINT"
+               : g_stop_signal == SIGTERM ? "SIGTERM"
+               : exit_code != 0           ? "error"
+                                          : "end");
+  std::fflush(out);
+  if (out != stdout && std::fclose(out) != 0) {
+    std::fprintf(stderr, "epitrack-device: closing %s failed\n", config.poses.c_str());
+    exit_code = 1;
+  }
+  if (!config.record.empty()) {
+    if (!recorder.finish(error)) {
+      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+      exit_code = 1;
+    } else {
+      std::fprintf(stderr, "epitrack-device: recorded %lld frames to %s\n",
+                   static_cast<long long>(recorder.framesWritten()), config.record.c_str());
+    }
+  }
+  source.reset();  // streams off, files closed
+  return exit_code;
+}

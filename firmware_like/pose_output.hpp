@@ -1,0 +1,39 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+
+#include <Eigen/Geometry>
+
+#include "algo/geometry/pose.hpp"
+#include "algo/sfm/live_map.hpp"
+
+namespace epitrack::device {
+
+/// Formats one pose line (ARCHITECTURE.md `epitrack-device`): `frame`, `t`, `status`,
+/// `features`, and when tracking `q` [qx, qy, qz, qw] and `p` [x, y, z] of T_wc (the inverse of
+/// the world-to-camera `pose`), then `ms`. Writes into `buffer` (no allocation) and returns the
+/// length, newline included.
+inline int formatPoseLine(char* buffer, std::size_t size, int64_t frame, double t,
+                          LiveStatus status, int features, const PoseCw& pose, double ms) {
+  if (status == LiveStatus::kTracking) {
+    const Eigen::Matrix3d R_wc = pose.R_cw.transpose();
+    Eigen::Quaterniond q(R_wc);
+    q.normalize();
+    if (q.w() < 0.0) q.coeffs() = -q.coeffs();
+    const Eigen::Vector3d p = pose.centre();
+    return std::snprintf(buffer, size,
+                         "{\"frame\": %lld, \"t\": %.6f, \"status\": \"%s\", \"features\": %d, "
+                         "\"q\": [%.9f, %.9f, %.9f, %.9f], \"p\": [%.9g, %.9g, %.9g], "
+                         "\"ms\": %.3f}\n",
+                         static_cast<long long>(frame), t, toString(status), features, q.x(), q.y(),
+                         q.z(), q.w(), p.x(), p.y(), p.z(), ms);
+  }
+  return std::snprintf(buffer, size,
+                       "{\"frame\": %lld, \"t\": %.6f, \"status\": \"%s\", \"features\": %d, "
+                       "\"ms\": %.3f}\n",
+                       static_cast<long long>(frame), t, toString(status), features, ms);
+}
+
+}  // namespace epitrack::device

@@ -1,0 +1,143 @@
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "hal/io/text_formats.hpp"
+#include "tests/device/device_output.hpp"
+#include "tests/support/test_support.hpp"
+#include "tools/eval/trajectory_metrics.hpp"
+
+// Live accuracy (issue 8): replayed synthetic clips with the given intrinsics. After the map is
+// initialised every frame must be tracking, and the live poses, similarity-aligned to the ground
+// truth, must be within 2x the offline solver's ATE (epitrack-solve --intrinsics on the same clip).
+
+using epitrack::test::binaryPath;
+using epitrack::test::run;
+using epitrack::test::TempDir;
+
+namespace {
+
+std::string readAll(const std::string& path) {
+  std::string text, error;
+  epitrack::hal::readTextFile(path, text, error);
+  return text;
+}
+
+epitrack::eval::TrajectoryMetrics evaluate(const std::vector<epitrack::hal::TrajectoryEntry>& gt,
+                                           const std::vector<epitrack::hal::TrajectoryEntry>& est) {
+  epitrack::eval::TrajectoryMetrics m;
+  std::string error;
+  INFO(error);
+  REQUIRE(epitrack::eval::evaluateTrajectory(gt, est, 0.01, m, error));
+  return m;
+}
+
+void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init_frame,
+                             bool self_calibrate, const std::string& tag) {
+  TempDir dir(tag);
+  const std::string clip = dir.file("clip");
+  REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " " + synth_args + " --out " + clip +
+              " 2>/dev/null") == 0);
+  std::vector<epitrack::hal::TrajectoryEntry> gt;
+  std::string error;
+  REQUIRE(epitrack::hal::readTrajectoryFile(clip + "/groundtruth.txt", gt, error));
+
+  // Live.
+  const std::string poses = dir.file("poses.jsonl");
+  REQUIRE(run(binaryPath("firmware_like/epitrack-device") + " --source " + clip +
+              "/frames --intrinsics " + clip + "/intrinsics.txt --poses " + poses +
+              " 2>/dev/null") == 0);
+  std::vector<epitrack::test::DeviceLine> lines;
+  std::string summary;
+  epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+  REQUIRE(lines.size() == gt.size());
+  REQUIRE_FALSE(summary.empty());
+  std::size_t first_tracking = lines.size();
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (lines[i].status == "tracking") {
+      first_tracking = i;
+      break;
+    }
+    CHECK(lines[i].status == "initializing");
+  }
+  INFO("initialised at frame " << first_tracking);
+  REQUIRE(first_tracking <= max_init_frame);
+  int not_tracking = 0;
+  for (std::size_t i = first_tracking; i < lines.size(); ++i)
+    not_tracking += lines[i].status == "tracking" ? 0 : 1;
+  CHECK(not_tracking == 0);
+  const auto live = evaluate(gt, epitrack::test::trackingTrajectory(lines));
+
+  // Offline.
+  const std::string out = dir.file("solve");
+  REQUIRE(run(binaryPath("tools/solve/epitrack-solve") + " " + clip + "/frames --out " + out +
+              " --intrinsics " + clip + "/intrinsics.txt --render none --quiet") == 0);
+  std::vector<epitrack::hal::TrajectoryEntry> offline_est;
+  REQUIRE(epitrack::hal::readTrajectoryFile(out + "/cameras.tum", offline_est, error));
+  const auto offline = evaluate(gt, offline_est);
+
+  std::printf(
+      "%s: live ate_rmse_rel %.5f (%d frames, rot %.3f deg), offline %.5f (%d frames, "
+      "rot %.3f deg), ratio %.2f, %s\n",
+      tag.c_str(), live.ate_rmse_rel, live.matched_frames, live.rot_err_deg_mean,
+      offline.ate_rmse_rel, offline.matched_frames, offline.rot_err_deg_mean,
+      live.ate_rmse_rel / offline.ate_rmse_rel, summary.c_str());
+  INFO("live " << live.ate_rmse_rel << " offline " << offline.ate_rmse_rel);
+  CHECK(live.ate_rmse_rel <= 2.0 * offline.ate_rmse_rel);
+  CHECK(live.rot_err_deg_mean < 1.0);
+
+  if (!self_calibrate) return;
+  // Without intrinsics: the focal is self-calibrated over the first seconds, then the same loop.
+  const std::string sc_poses = dir.file("poses-selfcal.jsonl");
+  REQUIRE(run(binaryPath("firmware_like/epitrack-device") + " --source " + clip +
+              "/frames --poses " + sc_poses + " 2>/dev/null") == 0);
+  lines.clear();
+  epitrack::test::parseDeviceOutput(readAll(sc_poses), lines, summary);
+  REQUIRE(lines.size() == gt.size());
+  CHECK(summary.find("\"focal_source\": \"self-calibrated\"") != std::string::npos);
+  epitrack::CameraIntrinsics K;
+  REQUIRE(epitrack::hal::readIntrinsicsFile(clip + "/intrinsics.txt", K, error));
+  const double focal = epitrack::test::jsonNumberAfter(summary, "focal_px", -1);
+  CHECK(std::abs(focal - K.fx) < 0.02 * K.fx);
+  std::size_t sc_first = lines.size();
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (lines[i].status == "tracking") {
+      sc_first = i;
+      break;
+    }
+  }
+  REQUIRE(sc_first < lines.size() / 2);
+  int sc_not_tracking = 0;
+  for (std::size_t i = sc_first; i < lines.size(); ++i)
+    sc_not_tracking += lines[i].status == "tracking" ? 0 : 1;
+  CHECK(sc_not_tracking == 0);
+  const auto sc = evaluate(gt, epitrack::test::trackingTrajectory(lines));
+  std::printf(
+      "%s self-calibrated: focal %.1f (true %.1f), tracking from frame %zu, ate_rmse_rel %.5f\n",
+      tag.c_str(), focal, K.fx, sc_first, sc.ate_rmse_rel);
+  // The item-3 bound is for given intrinsics; a focal 1 % off bends the trajectory a little
+  // (measured: 0.0007, i.e. 0.7 mm per metre of path).
+  CHECK(sc.ate_rmse_rel < 0.0015);
+}
+
+}  // namespace
+
+TEST_CASE("Live poses on a replayed orbit are within 2x the offline solver, and self-calibrated",
+          "[device][accuracy]") {
+  // Measured (Release, x86-64): live 0.00020, offline 0.00013 (ratio 1.6); initialised at frame 10.
+  checkLiveAgainstOffline(
+      "--scene orbit --frames 150 --size 480x360 --focal 420 --target-wander 0.5 --quiet", 30, true,
+      "device-orbit");
+}
+
+TEST_CASE("Live poses on a replayed handheld clip are within 2x the offline solver",
+          "[device][accuracy]") {
+  // The handheld walk is slow (5 mm a frame, 7 m from the scene): the offline solver needs about
+  // 300 frames to find parallax, and the live map initialises at frame 80 (0.4 m of baseline).
+  // Measured: live 0.00039, offline 0.00020 (ratio 1.9).
+  checkLiveAgainstOffline("--scene handheld --frames 300 --size 480x360 --focal 420 --quiet", 100,
+                          false, "device-handheld");
+}

@@ -371,7 +371,8 @@ TEST_CASE("blender_camera.py compiles with python3", "[export]") {
 }
 
 TEST_CASE("writeAllOutputs of a large 340-frame solve is consistent", "[export]") {
-  // Time is printed, not asserted (speed belongs to benchmarks). 340 frames x 25 points + 3000 extra points each seen in 40 frames: ~130k observations.
+  // Time is printed, not asserted (speed belongs to benchmarks). 340 frames x 25 points + 3000
+  // extra points each seen in 40 frames: ~130k observations.
   Reconstruction rec = et::makeReconstruction(340, 0);
   for (int i = 0; i < 3000; ++i) {
     ScenePoint p;

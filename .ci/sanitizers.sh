@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Sanitizers: the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer (any
+# report is fatal: -fno-sanitize-recover=all, halt_on_error, abort_on_error) into build/asan, then
+# ctest. -O1 with line tables keeps the build and the run short while reports keep file:line.
+#   EPITRACK_ASAN_BUILD_DIR  build directory (default build/asan)
+#   EPITRACK_JOBS            parallel build and test jobs (default 2)
+#   EPITRACK_CTEST_ARGS      extra ctest arguments (e.g. -R hal)
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build=${EPITRACK_ASAN_BUILD_DIR:-$root/build/asan}
+jobs=${EPITRACK_JOBS:-2}
+
+"$root/tools/deps.sh" base
+
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DEPITRACK_SANITIZERS="address;undefined" \
+  -DEPITRACK_BUILD_BENCH=OFF -DEPITRACK_WERROR=ON ${EPITRACK_CMAKE_ARGS:-} >/dev/null
+cmake --build "$build" -j "$jobs"
+
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
+ctest --test-dir "$build" -j "$jobs" --output-on-failure ${EPITRACK_CTEST_ARGS:-}

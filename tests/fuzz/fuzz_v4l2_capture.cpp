@@ -131,7 +131,7 @@ class FuzzedSyscalls final : public hal::V4l2Syscalls {
     const auto [data, length] = mapping->second;
     const std::size_t n = in_.ConsumeIntegralInRange<std::size_t>(0, length);
     const std::vector<uint8_t> bytes = in_.ConsumeBytes<uint8_t>(n);
-    std::memcpy(data, bytes.data(), bytes.size());
+    if (!bytes.empty()) std::memcpy(data, bytes.data(), bytes.size());
     buf.bytesused = static_cast<uint32_t>(bytes.size());
   }
 

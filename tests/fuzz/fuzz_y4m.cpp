@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "hal/io/image_codec.hpp"
 #include "hal/replay/y4m_source.hpp"
 #include "tests/fuzz/fuzz_support.hpp"
 

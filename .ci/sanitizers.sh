@@ -2,6 +2,8 @@
 # Sanitizers: the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer (any
 # report is fatal: -fno-sanitize-recover=all, halt_on_error, abort_on_error) into build/asan, then
 # ctest. -O1 with line tables keeps the build and the run short while reports keep file:line.
+# Warnings are not errors here (the Release build of tools/test.sh enforces them): with the
+# sanitizers GCC reports false -Wmaybe-uninitialized inside Eigen.
 #   EPITRACK_ASAN_BUILD_DIR  build directory (default build/asan)
 #   EPITRACK_JOBS            parallel build and test jobs (default 2)
 #   EPITRACK_CTEST_ARGS      extra ctest arguments (e.g. -R hal)
@@ -14,7 +16,7 @@ jobs=${EPITRACK_JOBS:-2}
 
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DEPITRACK_SANITIZERS="address;undefined" \
-  -DEPITRACK_BUILD_BENCH=OFF -DEPITRACK_WERROR=ON ${EPITRACK_CMAKE_ARGS:-} >/dev/null
+  -DEPITRACK_BUILD_BENCH=OFF -DEPITRACK_WERROR=OFF ${EPITRACK_CMAKE_ARGS:-} >/dev/null
 cmake --build "$build" -j "$jobs"
 
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1}

@@ -77,9 +77,12 @@ bool parseTrajectory(const std::string& text, std::vector<TrajectoryEntry>& entr
     e.t = v[0];
     e.position = Eigen::Vector3d(v[1], v[2], v[3]);
     e.rotation = Eigen::Quaterniond(v[7], v[4], v[5], v[6]);
-    const double n = e.rotation.norm();
-    if (!(n > 1e-9)) {
-      error = "line " + std::to_string(line_no) + ": zero quaternion";
+    // stableNorm: the plain norm overflows for components near 1e155 and above, and dividing
+    // by infinity turned such a quaternion into zeros (found by fuzzing).
+    const double n = e.rotation.coeffs().stableNorm();
+    if (!(n > 1e-9) || !std::isfinite(n)) {
+      error = "line " + std::to_string(line_no) +
+              (std::isfinite(n) ? ": zero quaternion" : ": quaternion too large to normalise");
       return false;
     }
     e.rotation.coeffs() /= n;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include <linux/videodev2.h>
 #include <sys/resource.h>
 
 #include "hal/io/file_util.hpp"
@@ -15,6 +16,8 @@
 #include "hal/io/text_formats.hpp"
 #include "hal/io/tracks_csv.hpp"
 #include "hal/replay/y4m_source.hpp"
+#include "hal/v4l2/v4l2_capture_source.hpp"
+#include "tests/hal/fake_v4l2_driver.hpp"
 #include "tests/hal/replay_test_helpers.hpp"
 
 using epitrack::Image;
@@ -138,4 +141,67 @@ TEST_CASE("Y4M planes larger than the skip chunk are skipped exactly", "[hal][fu
     CHECK(epitrack::test::sameImage(frame.luma, frames[static_cast<std::size_t>(i)].constView()));
   }
   CHECK(source.next(frame) == hal::FrameStatus::kEndOfStream);
+}
+
+namespace {
+
+/// Passes every call to the fake driver, but claims more bytes than the buffer holds on DQBUF.
+class OverclaimingDriver final : public hal::V4l2Syscalls {
+ public:
+  explicit OverclaimingDriver(epitrack::test::FakeV4l2Driver& driver) : driver_(driver) {}
+  int open(const char* path, int flags) override { return driver_.open(path, flags); }
+  int close(int fd) override { return driver_.close(fd); }
+  void* mmap(void* addr, std::size_t length, int prot, int flags, int fd, off_t offset) override {
+    return driver_.mmap(addr, length, prot, flags, fd, offset);
+  }
+  int munmap(void* addr, std::size_t length) override { return driver_.munmap(addr, length); }
+  int poll(struct pollfd* fds, nfds_t count, int timeout_ms) override {
+    return driver_.poll(fds, count, timeout_ms);
+  }
+  int ioctl(int fd, unsigned long request, void* arg) override {
+    const int rc = driver_.ioctl(fd, request, arg);
+    if (rc == 0 && request == VIDIOC_DQBUF) {
+      auto* buf = static_cast<v4l2_buffer*>(arg);
+      buf->bytesused = buf->length + 1;
+    }
+    return rc;
+  }
+
+ private:
+  epitrack::test::FakeV4l2Driver& driver_;
+};
+
+}  // namespace
+
+TEST_CASE("A V4L2 buffer claiming more bytes than it holds is a corrupt frame", "[hal][fuzz]") {
+  // Found by fuzz_v4l2_capture: an MJPEG buffer whose bytesused exceeded its length was copied
+  // by that length (reading past the mapping) into a copy grown to 3 GB.
+  for (const uint32_t fourcc : {V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_GREY}) {
+    epitrack::test::FakeV4l2Config config;
+    config.formats = {fourcc};
+    config.sizes = {{64, 48}};
+    epitrack::test::FakeV4l2Driver driver(config);
+    {
+      OverclaimingDriver overclaiming(driver);
+      std::string error;
+      const auto source = hal::openV4l2Source("v4l2:/dev/video0", overclaiming, {}, error);
+      REQUIRE(source != nullptr);
+      hal::Frame frame;
+      CHECK(source->next(frame) == hal::FrameStatus::kCorruptFrame);
+      CHECK(source->lastError().find("claims") != std::string::npos);
+    }
+    CHECK(driver.openFds() == 0);
+    CHECK(driver.mappedBuffers() == 0);
+  }
+}
+
+TEST_CASE("A V4L2 driver offering an empty frame size is refused", "[hal][fuzz]") {
+  epitrack::test::FakeV4l2Config config;
+  config.formats = {V4L2_PIX_FMT_GREY};
+  config.sizes = {{0, 0}};
+  epitrack::test::FakeV4l2Driver driver(config);
+  std::string error;
+  CHECK(hal::openV4l2Source("v4l2:/dev/video0", driver, {}, error) == nullptr);
+  CHECK(error.find("no usable frame size") != std::string::npos);
+  CHECK(driver.openFds() == 0);
 }

@@ -8,6 +8,7 @@
 #   EPITRACK_JOBS            parallel build and test jobs (default 2)
 #   EPITRACK_CTEST_ARGS      extra ctest arguments (e.g. -R hal)
 #   EPITRACK_CMAKE_ARGS      extra configure arguments
+#   EPITRACK_SANITIZER_FULL  1: also run the long accuracy sweeps (about 30 min more on 2 cores)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${EPITRACK_ASAN_BUILD_DIR:-$root/build/asan}
@@ -24,6 +25,14 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_strin
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 # install_and_find_package builds a consumer project against the installed libraries; those carry
 # the sanitizer instrumentation but not its link flags, so it cannot link here (it runs in the
-# ordinary build).
-ctest --test-dir "$build" -j "$jobs" --output-on-failure -E '^install_and_find_package$' \
-  ${EPITRACK_CTEST_ARGS:-}
+# ordinary build). Unless EPITRACK_SANITIZER_FULL=1, the accuracy sweeps of the solver and the
+# tracker are left to the Release suite too: under ASan at -O1 they took 100-380 s each (1800 of
+# the 2000 s of test time, 2 loaded cores); the same code still runs here through the shorter
+# solver tests and one full `epitrack-solve` run.
+exclude='^install_and_find_package$'
+if [ "${EPITRACK_SANITIZER_FULL:-0}" != 1 ]; then
+  exclude+='|does not depend on small shifts|noise-free 704x576 orbit meets|self-calibrates a handheld clip'
+  exclude+='|^Exact orbit|wandering target|brute-force supersampled|^Handheld with the focal unknown'
+  exclude+='|^Dolly \(forward motion\)|^Orbit with the focal unknown'
+fi
+ctest --test-dir "$build" -j "$jobs" --output-on-failure -E "$exclude" ${EPITRACK_CTEST_ARGS:-}

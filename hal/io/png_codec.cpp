@@ -11,6 +11,14 @@
 namespace epitrack::hal {
 namespace {
 
+/// The ancillary chunks libpng knows, other than tRNS (5 bytes each: name and NUL), ignored.
+constexpr png_byte kIgnoredChunks[] = {
+    'b', 'K', 'G', 'D', 0,   'c', 'H', 'R', 'M', 0,   'e', 'X', 'I', 'f', 0,   'g', 'A',
+    'M', 'A', 0,   'h', 'I', 'S', 'T', 0,   'i', 'C', 'C', 'P', 0,   'i', 'T', 'X', 't',
+    0,   'o', 'F', 'F', 's', 0,   'p', 'C', 'A', 'L', 0,   'p', 'H', 'Y', 's', 0,   's',
+    'B', 'I', 'T', 0,   's', 'C', 'A', 'L', 0,   's', 'P', 'L', 'T', 0,   's', 'R', 'G',
+    'B', 0,   't', 'E', 'X', 't', 0,   't', 'I', 'M', 'E', 0,   'z', 'T', 'X', 't', 0};
+
 struct PngReadContext {
   const uint8_t* data;
   std::size_t size;
@@ -52,6 +60,11 @@ int pngDecodeImpl(PngReadContext* ctx, ImageHeader* header, ImageView<uint8_t>* 
     return -1;
   }
   png_set_user_limits(png, kMaxImageDimension, kMaxImageDimension);
+  // Only IHDR, PLTE, tRNS, IDAT and IEND matter for luma. libpng allocates an ancillary chunk's
+  // claimed length before reading it, so a 100-byte file claiming a 1 GB sPLT chunk made it
+  // allocate and clear 1 GB (found by fuzzing); the others are now skipped unread.
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kIgnoredChunks,
+                              static_cast<int>(sizeof(kIgnoredChunks) / 5));
   png_set_read_fn(png, ctx, pngRead);
   png_read_info(png, info);
   const png_uint_32 w = png_get_image_width(png, info);
@@ -94,10 +107,13 @@ int pngDecodeImpl(PngReadContext* ctx, ImageHeader* header, ImageView<uint8_t>* 
         d[x] = channels >= 3 ? rgbToLuma(s[0], s[1], s[2]) : s[0];
     }
   } else {
-    // Interlaced: libpng needs the whole image; keep it in the scratch buffer.
-    row_scratch->resize(row_bytes * h + sizeof(png_bytep) * h);
-    auto* rows = reinterpret_cast<png_bytep*>(row_scratch->data() + row_bytes * h);  // NOLINT
-    for (png_uint_32 y = 0; y < h; ++y) rows[y] = row_scratch->data() + row_bytes * y;
+    // Interlaced: libpng needs the whole image; keep it in the scratch buffer, the row pointers
+    // first (the buffer start is aligned for them; after the pixels they could be misaligned).
+    const std::size_t pointer_bytes = sizeof(png_bytep) * h;
+    row_scratch->resize(pointer_bytes + row_bytes * h);
+    auto* rows = reinterpret_cast<png_bytep*>(row_scratch->data());  // NOLINT
+    uint8_t* pixels = row_scratch->data() + pointer_bytes;
+    for (png_uint_32 y = 0; y < h; ++y) rows[y] = pixels + row_bytes * y;
     png_read_image(png, rows);
     for (png_uint_32 y = 0; y < h; ++y) {
       const uint8_t* s = rows[y];

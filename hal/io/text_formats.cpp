@@ -35,6 +35,22 @@ bool isBlankOrComment(const std::string& line) {
   return true;
 }
 
+/// Appends `v` as "%.<decimals>f", however long it prints: "%.9f" of 1e300 is 310 characters,
+/// which a fixed buffer would cut, losing the rest of the line (found by fuzzing).
+void appendFixed(std::string& out, int decimals, double v) {
+  char buf[64];
+  const int n = std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  if (n < 0) return;
+  if (static_cast<std::size_t>(n) < sizeof(buf)) {
+    out.append(buf, static_cast<std::size_t>(n));
+    return;
+  }
+  const std::size_t start = out.size();
+  out.resize(start + static_cast<std::size_t>(n) + 1);
+  std::snprintf(out.data() + start, static_cast<std::size_t>(n) + 1, "%.*f", decimals, v);
+  out.resize(start + static_cast<std::size_t>(n));
+}
+
 std::string number(double v) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.10g", v);
@@ -61,9 +77,12 @@ bool parseTrajectory(const std::string& text, std::vector<TrajectoryEntry>& entr
     e.t = v[0];
     e.position = Eigen::Vector3d(v[1], v[2], v[3]);
     e.rotation = Eigen::Quaterniond(v[7], v[4], v[5], v[6]);
-    const double n = e.rotation.norm();
-    if (!(n > 1e-9)) {
-      error = "line " + std::to_string(line_no) + ": zero quaternion";
+    // stableNorm: the plain norm overflows for components near 1e155 and above, and dividing
+    // by infinity turned such a quaternion into zeros (found by fuzzing).
+    const double n = e.rotation.coeffs().stableNorm();
+    if (!(n > 1e-9) || !std::isfinite(n)) {
+      error = "line " + std::to_string(line_no) +
+              (std::isfinite(n) ? ": zero quaternion" : ": quaternion too large to normalise");
       return false;
     }
     e.rotation.coeffs() /= n;
@@ -77,19 +96,19 @@ std::string formatTrajectory(const std::vector<TrajectoryEntry>& entries,
   std::string out;
   if (!comment.empty()) out += "# " + comment + "\n";
   out += "# t tx ty tz qx qy qz qw  (T_wc: camera centre, camera-to-world rotation)\n";
-  char buf[256];
   for (const auto& e : entries) {
     const bool integral = e.t == std::floor(e.t) && std::abs(e.t) < 1e15;
     if (integral) {
-      std::snprintf(buf, sizeof(buf), "%lld", static_cast<long long>(e.t));
+      out += std::to_string(static_cast<long long>(e.t));
     } else {
-      std::snprintf(buf, sizeof(buf), "%.6f", e.t);
+      appendFixed(out, 6, e.t);
     }
-    out += buf;
-    std::snprintf(buf, sizeof(buf), " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", e.position.x(),
-                  e.position.y(), e.position.z(), e.rotation.x(), e.rotation.y(), e.rotation.z(),
-                  e.rotation.w());
-    out += buf;
+    for (const double v : {e.position.x(), e.position.y(), e.position.z(), e.rotation.x(),
+                           e.rotation.y(), e.rotation.z(), e.rotation.w()}) {
+      out += ' ';
+      appendFixed(out, 9, v);
+    }
+    out += '\n';
   }
   return out;
 }

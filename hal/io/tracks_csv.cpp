@@ -19,7 +19,18 @@ std::string formatTracksCsv(const std::vector<TrackRow>& rows) {
   for (const TrackRow& r : rows) {
     const int n = std::snprintf(line, sizeof(line), "%" PRId64 ",%" PRId32 ",%.3f,%.3f\n", r.frame,
                                 r.track_id, r.x, r.y);
-    if (n > 0) out.append(line, static_cast<std::size_t>(std::min<int>(n, sizeof(line) - 1)));
+    if (n < 0) continue;
+    if (static_cast<std::size_t>(n) < sizeof(line)) {
+      out.append(line, static_cast<std::size_t>(n));
+      continue;
+    }
+    // A huge coordinate prints to hundreds of digits: format it at its full length rather than
+    // cut the line (a cut line loses its newline and merges with the next one).
+    const std::size_t start = out.size();
+    out.resize(start + static_cast<std::size_t>(n) + 1);
+    std::snprintf(out.data() + start, static_cast<std::size_t>(n) + 1,
+                  "%" PRId64 ",%" PRId32 ",%.3f,%.3f\n", r.frame, r.track_id, r.x, r.y);
+    out.resize(start + static_cast<std::size_t>(n));
   }
   return out;
 }

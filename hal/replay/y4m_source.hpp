@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -56,8 +57,8 @@ class Y4mSource final : public FrameSource {
   std::string name_;
   Y4mHeader header_;
   Image<uint8_t> luma_;
-  std::vector<uint8_t> scratch_;  // one high-bit-depth luma row, or the chroma planes
-  std::vector<char> stream_buffer_;
+  std::vector<uint8_t> scratch_;           // one high-bit-depth luma row, or the chroma planes
+  std::unique_ptr<char[]> stream_buffer_;  // stdio buffer, left uninitialised (1 MB)
   std::string line_;
   ReplayPacer pacer_;
   std::int64_t next_index_ = 0;

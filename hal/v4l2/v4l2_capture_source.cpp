@@ -261,6 +261,13 @@ bool V4l2CaptureSource::negotiateFormat() {
     }
   }
 
+  // Sizes come from the driver here (frame-size enumeration or the current format): refuse what
+  // no reader accepts (an empty frame, or more than kMaxImageDimension a side).
+  if (width < 1 || height < 1 || width > kMaxImageDimension || height > kMaxImageDimension) {
+    error_ = "'" + dev + "' offers no usable frame size (" + std::to_string(width) + "x" +
+             std::to_string(height) + "); ask for one with ?width=W&height=H";
+    return false;
+  }
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   fmt.fmt.pix.width = static_cast<uint32_t>(width);
@@ -435,6 +442,13 @@ FrameStatus V4l2CaptureSource::convert(const MappedBuffer& buffer, std::size_t b
   const auto* src = static_cast<const uint8_t*>(buffer.data);
   const int w = luma_.width();
   const int h = luma_.height();
+  if (bytes_used > buffer.length) {
+    // A driver bug, but trusting it read past the mapped buffer, and for MJPEG grew the encoded
+    // copy to the claimed size (3 GB in the fuzzer's case; found by fuzzing).
+    error_ = "'" + options_.device + "': frame " + std::to_string(index) + " claims " +
+             std::to_string(bytes_used) + " bytes in a buffer of " + std::to_string(buffer.length);
+    return FrameStatus::kCorruptFrame;
+  }
   if (fourcc_ == V4L2_PIX_FMT_MJPEG) {
     if (bytes_used < 4) {
       error_ = "'" + options_.device + "': frame " + std::to_string(index) + " is empty (" +

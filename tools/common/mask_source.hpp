@@ -3,6 +3,7 @@
 // The user mask of epitrack-track and epitrack-solve (`--mask PGM|DIR`): zero pixels are never
 // tracked (moving people, sky, a logo).
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>

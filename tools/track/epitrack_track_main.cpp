@@ -16,6 +16,7 @@
 #include "hal/io/image_codec.hpp"
 #include "hal/io/tracks_csv.hpp"
 #include "tools/common/command_line.hpp"
+#include "tools/common/mask_source.hpp"
 
 namespace hal = epitrack::hal;
 using epitrack::FeatureTracker;
@@ -23,50 +24,7 @@ using epitrack::FeatureTrackerOptions;
 using epitrack::Image;
 using epitrack::tools::CommandLine;
 
-namespace {
-
-/// A user mask: one PGM for every frame, or a directory with one image per frame (by sorted
-/// position; the last one is reused when the directory holds fewer).
-class MaskSource {
- public:
-  bool open(const std::string& spec, std::string& error) {
-    if (spec.empty()) return true;
-    if (hal::isDirectory(spec)) {
-      if (!hal::listFrameFiles(spec, paths_, error)) return false;
-    } else {
-      paths_.push_back(spec);
-    }
-    return true;
-  }
-  /// The mask for frame `index` (empty view when there is none).
-  bool maskFor(int64_t index, int width, int height, epitrack::ImageView<const uint8_t>& mask,
-               std::string& error) {
-    mask = {};
-    if (paths_.empty()) return true;
-    const auto i =
-        static_cast<std::size_t>(std::min<int64_t>(index, static_cast<int64_t>(paths_.size()) - 1));
-    if (i != loaded_) {
-      if (!decoder_.decodeFile(paths_[i], image_, error)) return false;
-      loaded_ = i;
-    }
-    if (image_.width() != width || image_.height() != height) {
-      error = paths_[i] + ": mask is " + std::to_string(image_.width()) + "x" +
-              std::to_string(image_.height()) + ", frames are " + std::to_string(width) + "x" +
-              std::to_string(height);
-      return false;
-    }
-    mask = image_.constView();
-    return true;
-  }
-
- private:
-  std::vector<std::string> paths_;
-  std::size_t loaded_ = static_cast<std::size_t>(-1);
-  hal::GrayImageDecoder decoder_;
-  Image<uint8_t> image_;
-};
-
-}  // namespace
+using epitrack::tools::MaskSource;
 
 int main(int argc, char** argv) {
   std::string input;

@@ -207,8 +207,8 @@ TEST_CASE("SIGTERM while epitrack-solve solves or renders leaves consistent outp
   const std::vector<Case> cases = {
       {"solving: 0/4",
        {"calibration", "initialization", "registration", "bundle_adjustment", "rendering",
-        "scene_frame"}},
-      {"rendering: 5/", {"rendering", "scene_frame"}},
+        "exports"}},
+      {"rendering: 5/", {"rendering", "exports"}},
   };
   for (const auto& c : cases) {
     DYNAMIC_SECTION("signal after '" << c.wait_for << "'") {
@@ -238,7 +238,7 @@ TEST_CASE("SIGTERM while epitrack-solve solves or renders leaves consistent outp
       CHECK(c.stages.count(stage) == 1);
       const auto files = jsonFiles(summary);
       const bool exports = std::find(files.begin(), files.end(), "cameras.tum") != files.end();
-      if (stage == "rendering" || stage == "scene_frame" || stage == "bundle_adjustment") {
+      if (stage == "rendering" || stage == "exports" || stage == "bundle_adjustment") {
         // The solve had finished: its exports are there and the solver's own status is kept.
         CHECK(exports);
         CHECK(jsonString(summary, "solve_status") == "ok");

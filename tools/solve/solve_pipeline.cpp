@@ -549,18 +549,18 @@ int runSolve(const SolveCommandOptions& o) {
     rec.files.emplace_back("augmented.avi");
     clock.lap("rendering");
   }
-  if (stop_stage.empty() && interruptRequested()) stop_stage = "scene_frame";
+  if (stop_stage.empty() && interruptRequested()) stop_stage = "exports";
   if (!stop_stage.empty()) {
     rec.solve_status = rec.status;
     rec.status = "interrupted";
     rec.interrupted_by = interruptSignalName();
     rec.interrupted_stage = stop_stage;
-    rec.message = std::string("stopped by ") + rec.interrupted_by + " during " + stop_stage +
-                  " after the solve had finished (" + rec.solve_status +
-                  "); the solve's outputs were written" +
-                  (stop_stage == "rendering" ? ", the augmented frames only up to the stop"
-                                             : ", no augmented frames") +
-                  (rec.message.empty() ? std::string() : "; " + rec.message);
+    rec.message =
+        std::string("stopped by ") + rec.interrupted_by + " during " + stop_stage +
+        " after the solve had finished (" + rec.solve_status +
+        "); the solve's outputs were written" +
+        (stop_stage == "rendering" ? ", the augmented frames only up to the stop" : std::string()) +
+        (rec.message.empty() ? std::string() : "; " + rec.message);
   }
 
   // report.html before the exports: summary.json stays the last file written.
@@ -582,7 +582,7 @@ int runSolve(const SolveCommandOptions& o) {
                 rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
                 rec.focal_source.c_str(), rec.focal_observable ? "" : ", not observable",
                 rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
-  if (o.progress != io::ProgressReporter::Mode::kQuiet || !stop_stage.empty())
+  if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   if (!stop_stage.empty()) {
     std::fprintf(stderr, "epitrack-solve: interrupted: %s\n", rec.message.c_str());

@@ -5,10 +5,24 @@
 #include <cstdlib>
 #include <functional>
 #include <map>
+#include <sstream>
 
 namespace epitrack::device {
 
 namespace {
+
+// The notation of epitrack's other commands' --help: [lo..hi].
+std::string rangeText(double lo, double hi) {
+  std::ostringstream s;
+  s << "[" << lo << ".." << hi << "]";
+  return s.str();
+}
+
+std::string rangeText(long lo, long hi) {
+  std::ostringstream s;
+  s << "[" << lo << ".." << hi << "]";
+  return s.str();
+}
 
 bool parseInt(const std::string& v, long lo, long hi, int& out, std::string& error) {
   errno = 0;
@@ -19,7 +33,7 @@ bool parseInt(const std::string& v, long lo, long hi, int& out, std::string& err
     return false;
   }
   if (x < lo || x > hi) {
-    error = "'" + v + "' is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    error = "'" + v + "' is outside " + rangeText(lo, hi);
     return false;
   }
   out = static_cast<int>(x);
@@ -35,7 +49,7 @@ bool parseReal(const std::string& v, double lo, double hi, double& out, std::str
     return false;
   }
   if (x < lo || x > hi) {
-    error = "'" + v + "' is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    error = "'" + v + "' is outside " + rangeText(lo, hi);
     return false;
   }
   out = x;
@@ -58,186 +72,158 @@ bool parseBool(const std::string& v, bool& out, std::string& error) {
 struct Key {
   std::string help;
   std::function<bool(DeviceConfig&, const std::string&, std::string&)> apply;
+  std::string range;  // "[lo..hi]" of numeric keys
 };
 
-Key intKey(const char* help, long lo, long hi, int DeviceConfig::*member) {
-  return {help, [=](DeviceConfig& c, const std::string& v, std::string& e) {
-            return parseInt(v, lo, hi, c.*member, e);
-          }};
+// An integer key in [lo, hi]; `set` stores it (and may refuse it with a reason).
+Key intKey(const std::string& help, long lo, long hi,
+           std::function<bool(DeviceConfig&, int, std::string&)> set) {
+  return {help,
+          [=](DeviceConfig& c, const std::string& v, std::string& e) {
+            int x = 0;
+            return parseInt(v, lo, hi, x, e) && set(c, x, e);
+          },
+          rangeText(lo, hi)};
+}
+
+Key intKey(const std::string& help, long lo, long hi, std::function<int&(DeviceConfig&)> field) {
+  return intKey(help, lo, hi, [field](DeviceConfig& c, int x, std::string&) {
+    field(c) = x;
+    return true;
+  });
+}
+
+Key realKey(const std::string& help, double lo, double hi,
+            std::function<double&(DeviceConfig&)> field) {
+  return {help,
+          [=](DeviceConfig& c, const std::string& v, std::string& e) {
+            return parseReal(v, lo, hi, field(c), e);
+          },
+          rangeText(lo, hi)};
+}
+
+Key boolKey(const std::string& help, std::function<bool&(DeviceConfig&)> field) {
+  return {help + " (true/false)",
+          [=](DeviceConfig& c, const std::string& v, std::string& e) {
+            return parseBool(v, field(c), e);
+          },
+          {}};
+}
+
+Key textKey(const std::string& help, bool allow_empty,
+            std::function<std::string&(DeviceConfig&)> field) {
+  return {help,
+          [=](DeviceConfig& c, const std::string& v, std::string& e) {
+            if (v.empty() && !allow_empty) {
+              e = "expected a non-empty value";
+              return false;
+            }
+            field(c) = v;
+            return true;
+          },
+          {}};
 }
 
 const std::map<std::string, Key>& keyTable() {
   static const std::map<std::string, Key> table = [] {
+    using C = DeviceConfig;
     std::map<std::string, Key> t;
-    t["source"] = {"INPUT: frame directory, .y4m, .mjpeg or v4l2:/dev/videoN?width=W&height=H",
-                   [](DeviceConfig& c, const std::string& v, std::string& e) {
-                     if (v.empty()) {
-                       e = "empty source";
-                       return false;
-                     }
-                     c.source = v;
-                     return true;
-                   }};
-    t["intrinsics"] = {"intrinsics.txt (fx fy cx cy width height [k1 k2])",
-                       [](DeviceConfig& c, const std::string& v, std::string&) {
-                         c.intrinsics_path = v;
-                         return true;
-                       }};
-    t["poses"] = {"pose stream: - (standard output) or a file",
-                  [](DeviceConfig& c, const std::string& v, std::string& e) {
-                    if (v.empty()) {
-                      e = "empty pose output";
-                      return false;
-                    }
-                    c.poses = v;
-                    return true;
-                  }};
-    t["record"] = {
-        "record the camera frames: FILE.mjpeg (JPEG) or a directory (lossless PGM frames)",
-        [](DeviceConfig& c, const std::string& v, std::string&) {
-          c.record = v;
-          return true;
-        }};
-    t["max_frames"] =
-        intKey("stop after N frames (0: until the end)", 0, 2000000000L, &DeviceConfig::max_frames);
-    t["realtime"] = {"pace replay at the nominal rate; late frames are dropped (true/false)",
-                     [](DeviceConfig& c, const std::string& v, std::string& e) {
-                       return parseBool(v, c.realtime, e);
-                     }};
-    t["fps"] = {"nominal rate of image directories",
-                [](DeviceConfig& c, const std::string& v, std::string& e) {
-                  return parseReal(v, 0.1, 100000.0, c.fps, e);
-                }};
-    t["focal"] = {"focal in pixels when no intrinsics are given (0: self-calibrate it)",
-                  [](DeviceConfig& c, const std::string& v, std::string& e) {
-                    return parseReal(v, 0.0, 1e6, c.focal, e);
-                  }};
+    t["source"] =
+        textKey("INPUT: frame directory, .y4m, .mjpeg or v4l2:/dev/videoN?width=W&height=H", false,
+                [](C& c) -> std::string& { return c.source; });
+    t["intrinsics"] = textKey("intrinsics.txt (fx fy cx cy width height [k1 k2])", true,
+                              [](C& c) -> std::string& { return c.intrinsics_path; });
+    t["poses"] = textKey("pose stream: - (standard output) or a file", false,
+                         [](C& c) -> std::string& { return c.poses; });
+    t["record"] =
+        textKey("record the camera frames: FILE.mjpeg (JPEG) or a directory (lossless PGM frames)",
+                true, [](C& c) -> std::string& { return c.record; });
+    t["max_frames"] = intKey("stop after N frames (0: until the end)", 0, 2000000000L,
+                             [](C& c) -> int& { return c.max_frames; });
+    t["realtime"] = boolKey("pace replay at the nominal rate; late frames are dropped",
+                            [](C& c) -> bool& { return c.realtime; });
+    t["fps"] = realKey("nominal rate of image directories", 0.1, 100000.0,
+                       [](C& c) -> double& { return c.fps; });
+    t["focal"] = realKey("focal in pixels when no intrinsics are given (0: self-calibrate it)", 0.0,
+                         1e6, [](C& c) -> double& { return c.focal; });
     t["warmup_frames"] = intKey("frames left out of the timing statistics", 0, 1000000,
-                                &DeviceConfig::warmup_frames);
-    t["features"] = {
-        "tracked features (capacity of the tracker and of the map's per-frame buffers)",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          int n = 0;
-          if (!parseInt(v, 16, 4000, n, e)) return false;
-          c.tracker.max_features = n;
-          c.map.max_features = n;
-          return true;
-        }};
-    t["window"] = {"LK window side in pixels (odd)",
-                   [](DeviceConfig& c, const std::string& v, std::string& e) {
-                     int n = 0;
-                     if (!parseInt(v, 5, 61, n, e)) return false;
-                     if (n % 2 == 0) {
-                       e = "'" + v + "' is even (the window needs a centre pixel)";
-                       return false;
-                     }
-                     c.tracker.window = n;
-                     return true;
-                   }};
-    t["levels"] = {"pyramid levels beyond the base",
-                   [](DeviceConfig& c, const std::string& v, std::string& e) {
-                     return parseInt(v, 0, 6, c.tracker.levels, e);
-                   }};
-    t["lk_affine"] = {"LK with an affine template warp at the base level (else translation only)",
-                      [](DeviceConfig& c, const std::string& v, std::string& e) {
-                        return parseBool(v, c.tracker.affine, e);
-                      }};
-    t["lk_iterations"] = {"LK iterations per pyramid level",
-                          [](DeviceConfig& c, const std::string& v, std::string& e) {
-                            return parseInt(v, 1, 100, c.tracker.max_iterations, e);
-                          }};
-    t["redetect_fraction"] = {
-        "detect new features when fewer than this fraction of `features` are tracked",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseReal(v, 0.0, 1.0, c.tracker.redetect_fraction, e);
-        }};
-    t["min_distance"] = {"minimum distance between features, px",
-                         [](DeviceConfig& c, const std::string& v, std::string& e) {
-                           return parseReal(v, 1.0, 200.0, c.tracker.min_distance, e);
-                         }};
-    t["max_points"] = {"map point capacity",
-                       [](DeviceConfig& c, const std::string& v, std::string& e) {
-                         return parseInt(v, 64, 1000000, c.map.max_points, e);
-                       }};
-    t["max_keyframes"] = {"keyframes kept (a ring)",
-                          [](DeviceConfig& c, const std::string& v, std::string& e) {
-                            return parseInt(v, 3, 1000, c.map.max_keyframes, e);
-                          }};
-    t["ba_window"] = {"newest keyframes refined by the windowed bundle adjustment",
-                      [](DeviceConfig& c, const std::string& v, std::string& e) {
-                        return parseInt(v, 2, 100, c.map.ba_window, e);
-                      }};
-    t["ba_fixed"] = {"older keyframes joining the adjustment as fixed cameras",
-                     [](DeviceConfig& c, const std::string& v, std::string& e) {
-                       return parseInt(v, 0, 100, c.map.ba_fixed, e);
-                     }};
-    t["ba_iterations"] = {"Levenberg-Marquardt iterations per adjustment (0: none)",
-                          [](DeviceConfig& c, const std::string& v, std::string& e) {
-                            return parseInt(v, 0, 100, c.map.ba_iterations, e);
-                          }};
-    t["reproj_threshold_px"] = {"PnP inlier / triangulation threshold, px",
-                                [](DeviceConfig& c, const std::string& v, std::string& e) {
-                                  return parseReal(v, 0.1, 50.0, c.map.reproj_threshold_px, e);
-                                }};
-    t["keyframe_parallax_deg"] = {"median parallax that makes a keyframe",
-                                  [](DeviceConfig& c, const std::string& v, std::string& e) {
-                                    return parseReal(v, 0.1, 45.0, c.map.keyframe_parallax_deg, e);
-                                  }};
-    t["keyframe_max_gap"] = {"frames after which a keyframe is taken anyway",
-                             [](DeviceConfig& c, const std::string& v, std::string& e) {
-                               return parseInt(v, 1, 100000, c.map.keyframe_max_gap, e);
-                             }};
-    t["init_min_parallax_deg"] = {"median parallax of the initial points",
-                                  [](DeviceConfig& c, const std::string& v, std::string& e) {
-                                    return parseReal(v, 0.1, 45.0, c.map.init_min_parallax_deg, e);
-                                  }};
-    t["init_min_displacement"] = {
-        "median track displacement (fraction of the width) before an initial pair is tried",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseReal(v, 0.0, 0.5, c.map.init_min_displacement, e);
-        }};
-    t["init_max_gap"] = {
-        "frames after which an initialisation reference that never succeeded is renewed",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseInt(v, 1, 1000000, c.map.init_max_gap, e);
-        }};
-    t["young_map_keyframes"] = {
-        "keyframes before the map counts as mature (dense keyframes until then)",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseInt(v, 0, 1000, c.map.young_map_keyframes, e);
-        }};
-    t["young_map_keyframe_gap"] = {"frames between keyframes while the map is young",
-                                   [](DeviceConfig& c, const std::string& v, std::string& e) {
-                                     return parseInt(v, 1, 1000, c.map.young_map_keyframe_gap, e);
-                                   }};
-    t["calib_pair_displacement"] = {
+                                [](C& c) -> int& { return c.warmup_frames; });
+    t["features"] =
+        intKey("tracked features (capacity of the tracker and of the map's per-frame buffers)", 16,
+               4000, [](C& c, int n, std::string&) {
+                 c.tracker.max_features = n;
+                 c.map.max_features = n;
+                 return true;
+               });
+    t["window"] = intKey("LK window side in pixels (odd)", 5, 61, [](C& c, int n, std::string& e) {
+      if (n % 2 == 0) {
+        e = std::to_string(n);  // (appended, not summed: GCC 12's -Wrestrict misfires on the sum)
+        e.insert(0, 1, '\'');
+        e += "' is even (the window needs a centre pixel)";
+        return false;
+      }
+      c.tracker.window = n;
+      return true;
+    });
+    t["levels"] = intKey("pyramid levels beyond the base", 0, 6,
+                         [](C& c) -> int& { return c.tracker.levels; });
+    t["lk_affine"] =
+        boolKey("LK with an affine template warp at the base level (else translation only)",
+                [](C& c) -> bool& { return c.tracker.affine; });
+    t["lk_iterations"] = intKey("LK iterations per pyramid level", 1, 100,
+                                [](C& c) -> int& { return c.tracker.max_iterations; });
+    t["redetect_fraction"] =
+        realKey("detect new features when fewer than this fraction of `features` are tracked", 0.0,
+                1.0, [](C& c) -> double& { return c.tracker.redetect_fraction; });
+    t["min_distance"] = realKey("minimum distance between features, px", 1.0, 200.0,
+                                [](C& c) -> double& { return c.tracker.min_distance; });
+    t["max_points"] =
+        intKey("map point capacity", 64, 1000000, [](C& c) -> int& { return c.map.max_points; });
+    t["max_keyframes"] = intKey("keyframes kept (a ring)", 3, 1000,
+                                [](C& c) -> int& { return c.map.max_keyframes; });
+    t["ba_window"] = intKey("newest keyframes refined by the windowed bundle adjustment", 2, 100,
+                            [](C& c) -> int& { return c.map.ba_window; });
+    t["ba_fixed"] = intKey("older keyframes joining the adjustment as fixed cameras", 0, 100,
+                           [](C& c) -> int& { return c.map.ba_fixed; });
+    t["ba_iterations"] = intKey("Levenberg-Marquardt iterations per adjustment (0: none)", 0, 100,
+                                [](C& c) -> int& { return c.map.ba_iterations; });
+    t["reproj_threshold_px"] = realKey("PnP inlier / triangulation threshold, px", 0.1, 50.0,
+                                       [](C& c) -> double& { return c.map.reproj_threshold_px; });
+    t["keyframe_parallax_deg"] =
+        realKey("median parallax that makes a keyframe", 0.1, 45.0,
+                [](C& c) -> double& { return c.map.keyframe_parallax_deg; });
+    t["keyframe_max_gap"] = intKey("frames after which a keyframe is taken anyway", 1, 100000,
+                                   [](C& c) -> int& { return c.map.keyframe_max_gap; });
+    t["init_min_parallax_deg"] =
+        realKey("median parallax of the initial points", 0.1, 45.0,
+                [](C& c) -> double& { return c.map.init_min_parallax_deg; });
+    t["init_min_displacement"] =
+        realKey("median track displacement (fraction of the width) before an initial pair is tried",
+                0.0, 0.5, [](C& c) -> double& { return c.map.init_min_displacement; });
+    t["init_max_gap"] =
+        intKey("frames after which an initialisation reference that never succeeded is renewed", 1,
+               1000000, [](C& c) -> int& { return c.map.init_max_gap; });
+    t["young_map_keyframes"] =
+        intKey("keyframes before the map counts as mature (dense keyframes until then)", 0, 1000,
+               [](C& c) -> int& { return c.map.young_map_keyframes; });
+    t["young_map_keyframe_gap"] = intKey("frames between keyframes while the map is young", 1, 1000,
+                                         [](C& c) -> int& { return c.map.young_map_keyframe_gap; });
+    t["calib_pair_displacement"] = realKey(
         "self-calibration: median displacement (fraction of the width) that closes a frame pair",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseReal(v, 0.005, 0.5, c.map.calib_pair_displacement, e);
-        }};
-    t["calib_min_pairs"] = {"self-calibration: F pairs before a focal is accepted",
-                            [](DeviceConfig& c, const std::string& v, std::string& e) {
-                              return parseInt(v, 1, 1000, c.map.calib_min_pairs, e);
-                            }};
-    t["calib_max_frames"] = {
-        "self-calibration: frames after which the fallback focal (1.2 x max(w, h)) is used",
-        [](DeviceConfig& c, const std::string& v, std::string& e) {
-          return parseInt(v, 1, 100000000, c.map.calib_max_frames, e);
-        }};
-    t["init_min_points"] = {"points the initial pair must triangulate",
-                            [](DeviceConfig& c, const std::string& v, std::string& e) {
-                              return parseInt(v, 8, 100000, c.map.init_min_points, e);
-                            }};
-    t["min_pnp_inliers"] = {"fewer PnP inliers: the frame is lost and the map restarts",
-                            [](DeviceConfig& c, const std::string& v, std::string& e) {
-                              return parseInt(v, 6, 100000, c.map.min_pnp_inliers, e);
-                            }};
-    t["seed"] = {"RANSAC seed", [](DeviceConfig& c, const std::string& v, std::string& e) {
-                   int s = 0;
-                   if (!parseInt(v, 0, 2000000000L, s, e)) return false;
-                   c.map.seed = static_cast<uint64_t>(s);
-                   return true;
-                 }};
+        0.005, 0.5, [](C& c) -> double& { return c.map.calib_pair_displacement; });
+    t["calib_min_pairs"] = intKey("self-calibration: F pairs before a focal is accepted", 1, 1000,
+                                  [](C& c) -> int& { return c.map.calib_min_pairs; });
+    t["calib_max_frames"] =
+        intKey("self-calibration: frames after which the fallback focal (1.2 x max(w, h)) is used",
+               1, 100000000, [](C& c) -> int& { return c.map.calib_max_frames; });
+    t["init_min_points"] = intKey("points the initial pair must triangulate", 8, 100000,
+                                  [](C& c) -> int& { return c.map.init_min_points; });
+    t["min_pnp_inliers"] = intKey("fewer PnP inliers: the frame is lost and the map restarts", 6,
+                                  100000, [](C& c) -> int& { return c.map.min_pnp_inliers; });
+    t["seed"] = intKey("RANSAC seed", 0, 2000000000L, [](C& c, int s, std::string&) {
+      c.map.seed = static_cast<uint64_t>(s);
+      return true;
+    });
     return t;
   }();
   return table;
@@ -252,20 +238,31 @@ std::string trim(const std::string& s) {
 
 }  // namespace
 
-bool applyConfigValue(DeviceConfig& config, const std::string& key, const std::string& value,
-                      std::string& error) {
+bool applyConfigValueReason(DeviceConfig& config, const std::string& key, const std::string& value,
+                            std::string& reason) {
   const auto& table = keyTable();
   const auto it = table.find(key);
   if (it == table.end()) {
-    error = "unknown configuration key '" + key + "'";
+    reason = "unknown configuration key '" + key + "'";
     return false;
   }
+  return it->second.apply(config, value, reason);
+}
+
+bool applyConfigValue(DeviceConfig& config, const std::string& key, const std::string& value,
+                      std::string& error) {
+  if (keyTable().count(key) == 0) return applyConfigValueReason(config, key, value, error);
   std::string why;
-  if (!it->second.apply(config, value, why)) {
+  if (!applyConfigValueReason(config, key, value, why)) {
     error = "bad value for '" + key + "': " + why;
     return false;
   }
   return true;
+}
+
+std::string configKeyRange(const std::string& key) {
+  const auto it = keyTable().find(key);
+  return it == keyTable().end() ? std::string() : it->second.range;
 }
 
 bool applyConfigText(DeviceConfig& config, const std::string& text, const std::string& origin,
@@ -314,7 +311,8 @@ bool validateConfig(const DeviceConfig& config, std::string& error) {
 const std::vector<std::pair<std::string, std::string>>& configKeys() {
   static const std::vector<std::pair<std::string, std::string>> keys = [] {
     std::vector<std::pair<std::string, std::string>> k;
-    for (const auto& [name, key] : keyTable()) k.emplace_back(name, key.help);
+    for (const auto& [name, key] : keyTable())
+      k.emplace_back(name, key.range.empty() ? key.help : key.help + " " + key.range);
     return k;
   }();
   return keys;

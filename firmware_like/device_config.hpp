@@ -29,6 +29,14 @@ struct DeviceConfig {
 bool applyConfigValue(DeviceConfig& config, const std::string& key, const std::string& value,
                       std::string& error);
 
+/// The same without the key in the message (only why the value is refused), for callers that
+/// name the option themselves (`--features: '5' is outside [16..4000]`).
+bool applyConfigValueReason(DeviceConfig& config, const std::string& key,
+                            const std::string& value, std::string& reason);
+
+/// "[lo..hi]" for a numeric key, empty otherwise.
+std::string configKeyRange(const std::string& key);
+
 /// A configuration file: `key = value` lines, `#` comments, blank lines. Errors name the line.
 bool applyConfigText(DeviceConfig& config, const std::string& text, const std::string& origin,
                      std::string& error);
@@ -36,7 +44,8 @@ bool applyConfigText(DeviceConfig& config, const std::string& text, const std::s
 /// Checks across keys (capacities that must agree); false with `error`.
 bool validateConfig(const DeviceConfig& config, std::string& error);
 
-/// Every accepted key with a one-line description (for --help and the README).
+/// Every accepted key with a one-line description, ending with its range `[lo..hi]` when numeric
+/// (for --help and the README).
 const std::vector<std::pair<std::string, std::string>>& configKeys();
 
 }  // namespace epitrack::device

@@ -57,6 +57,33 @@ int usageError(const std::string& message) {
   return 2;
 }
 
+// The command-line options: most set a configuration key of the same name ('-' for '_').
+struct CommandOption {
+  const char* name;
+  const char* metavar;  // empty: a flag
+  const char* key;      // configuration key, nullptr for --config and --set
+  const char* help;     // nullptr: the key's own help
+};
+
+constexpr CommandOption kCommandOptions[] = {
+    {"source", "INPUT", "source", nullptr},
+    {"intrinsics", "FILE", "intrinsics", nullptr},
+    {"config", "FILE", nullptr, "read 'key = value' lines (# comments); the command line wins"},
+    {"poses", "-|FILE", "poses", nullptr},
+    {"record", "FILE.mjpeg|DIR", "record", nullptr},
+    {"max-frames", "N", "max_frames", nullptr},
+    {"features", "N", "features", nullptr},
+    {"focal", "PX", "focal", nullptr},
+    {"realtime", "", "realtime", "pace replay at the nominal rate; late frames are dropped"},
+    {"set", "KEY=VALUE", nullptr, "set any configuration key below (repeatable)"},
+};
+
+const CommandOption* findCommandOption(const std::string& name) {
+  for (const auto& o : kCommandOptions)
+    if (name == o.name) return &o;
+  return nullptr;
+}
+
 void printHelp() {
   std::printf(
       "usage: epitrack-device --source INPUT [--intrinsics FILE] [--config FILE] [--poses -|FILE]\n"
@@ -65,21 +92,48 @@ void printHelp() {
       "                       [--focal PX] [--set KEY=VALUE ...]\n\n"
       "Live camera tracking on the device: one JSON line per frame (frame, t, status, features,\n"
       "q [qx,qy,qz,qw] and p [x,y,z] of T_wc when tracking, ms) and a final statistics line.\n"
-      "All memory is reserved before the first frame. SIGINT/SIGTERM stop cleanly. Without\n"
-      "--intrinsics or --focal the focal is self-calibrated over the first seconds of motion.\n"
-      "A camera (v4l2:) always drops frames it cannot keep up with; a replay with --realtime.\n\n"
-      "Options map to configuration keys (--max-frames is max_frames, ...). --config FILE reads\n"
-      "'key = value' lines (# comments); the command line wins over the file. Keys:\n");
-  for (const auto& [key, help] : epitrack::device::configKeys())
-    std::printf("  %-22s %s\n", key.c_str(), help.c_str());
+      "All memory is reserved before the first frame. SIGINT/SIGTERM stop cleanly (the final\n"
+      "line says \"stopped_by\"; exit 0). Without --intrinsics or --focal the focal is\n"
+      "self-calibrated over the first seconds of motion.\n"
+      "A camera (v4l2:) always drops frames it cannot keep up with; a replay with --realtime.\n"
+      "Exit: 0 done, 1 the stream failed (lost device, size change, write error), 2 bad command\n"
+      "line, configuration or unusable --source/--intrinsics/--config/--poses/--record.\n\n"
+      "options:\n");
+  const auto& keys = epitrack::device::configKeys();
+  for (const auto& o : kCommandOptions) {
+    std::string help = o.help != nullptr ? o.help : "";
+    std::string range;
+    if (o.key != nullptr) {
+      range = epitrack::device::configKeyRange(o.key);
+      if (o.help == nullptr) {
+        for (const auto& [key, key_help] : keys)
+          if (key == o.key)
+            help = key_help.substr(0, key_help.size() - (range.empty() ? 0 : range.size() + 1));
+      }
+      help += std::string(help.empty() ? "" : "; ") + "key " + o.key;
+    }
+    std::printf("  --%s%s%s%s\n      %s\n", o.name, *o.metavar ? " " : "", o.metavar,
+                range.empty() ? "" : ("  " + range).c_str(), help.c_str());
+  }
+  std::printf(
+      "  --help\n      print this help and exit\n\nconfiguration keys (--set KEY=VALUE or "
+      "'key = value' in --config FILE):\n");
+  for (const auto& [key, help] : keys) std::printf("  %-24s %s\n", key.c_str(), help.c_str());
 }
+
+// One setting from the command line: the key, its value and how it was written (for messages).
+struct Override {
+  std::string key;
+  std::string value;
+  std::string origin;  // "--features" or "--set features=5"
+};
 
 }  // namespace
 
 int main(int argc, char** argv) {
   using epitrack::device::DeviceConfig;
   // ---- configuration, read once: command line (as key/value pairs), then the file under it ----
-  std::vector<std::pair<std::string, std::string>> overrides;
+  std::vector<Override> overrides;
   std::string config_path;
   for (int i = 1; i < argc; ++i) {
     std::string arg = argv[i];
@@ -96,30 +150,26 @@ int main(int argc, char** argv) {
       name = name.substr(0, eq);
       have_value = true;
     }
-    if (name == "realtime") {
-      overrides.emplace_back("realtime", have_value ? value : "true");
+    const CommandOption* option = findCommandOption(name);
+    if (option == nullptr) return usageError("unknown option '--" + name + "'");
+    if (*option->metavar == '\0') {  // a flag; --realtime=false is accepted too
+      overrides.push_back({option->key, have_value ? value : "true", "--" + name});
       continue;
     }
     if (!have_value) {
-      if (i + 1 >= argc) return usageError("--" + name + " needs a value");
+      if (i + 1 >= argc)
+        return usageError("option '--" + name + "' needs a value " + option->metavar);
       value = argv[++i];
     }
     if (name == "config") {
       config_path = value;
     } else if (name == "set") {
       const auto eq = value.find('=');
-      if (eq == std::string::npos || eq == 0) return usageError("--set expects KEY=VALUE");
-      overrides.emplace_back(value.substr(0, eq), value.substr(eq + 1));
+      if (eq == std::string::npos || eq == 0)
+        return usageError("--set: expected KEY=VALUE, got '" + value + "'");
+      overrides.push_back({value.substr(0, eq), value.substr(eq + 1), "--set " + value});
     } else {
-      static const char* const kOptions[] = {"source",     "intrinsics", "poses", "record",
-                                             "max-frames", "features",   "focal"};
-      bool known = false;
-      for (const char* o : kOptions) known = known || name == o;
-      if (!known) return usageError("unknown option '--" + name + "'");
-      std::string key = name;
-      for (auto& c : key)
-        if (c == '-') c = '_';
-      overrides.emplace_back(key, value);
+      overrides.push_back({option->key, value, "--" + name});
     }
   }
   DeviceConfig config;
@@ -130,8 +180,10 @@ int main(int argc, char** argv) {
     if (!epitrack::device::applyConfigText(config, text, config_path, error))
       return usageError(error);
   }
-  for (const auto& [key, value] : overrides) {
-    if (!epitrack::device::applyConfigValue(config, key, value, error)) return usageError(error);
+  for (const auto& o : overrides) {
+    std::string why;
+    if (!epitrack::device::applyConfigValueReason(config, o.key, o.value, why))
+      return usageError(o.origin + ": " + why);
   }
   if (!epitrack::device::validateConfig(config, error)) return usageError(error);
 
@@ -139,22 +191,25 @@ int main(int argc, char** argv) {
   epitrack::hal::SourceOptions source_options;
   source_options.realtime = config.realtime;
   source_options.default_fps = config.fps;
+  // What the command line or the configuration names and cannot be used ends here with exit 2.
   auto source = epitrack::hal::openFrameSource(config.source, source_options, error);
   if (!source) {
     std::fprintf(stderr, "epitrack-device: %s\n", error.c_str());
-    return 1;
+    return 2;
   }
   const auto& info = source->info();
   epitrack::CameraIntrinsics intrinsics;
   if (!config.intrinsics_path.empty()) {
     if (!epitrack::hal::readIntrinsicsFile(config.intrinsics_path, intrinsics, error)) {
-      std::fprintf(stderr, "epitrack-device: %s\n", error.c_str());
-      return 1;
+      std::fprintf(stderr, "epitrack-device: --intrinsics: %s\n", error.c_str());
+      return 2;
     }
     if (intrinsics.width != info.width || intrinsics.height != info.height) {
-      std::fprintf(stderr, "epitrack-device: intrinsics are for %dx%d, the source gives %dx%d\n",
-                   intrinsics.width, intrinsics.height, info.width, info.height);
-      return 1;
+      std::fprintf(stderr,
+                   "epitrack-device: --intrinsics: %s is for %dx%d, the source gives %dx%d\n",
+                   config.intrinsics_path.c_str(), intrinsics.width, intrinsics.height, info.width,
+                   info.height);
+      return 2;
     }
   } else if (config.focal > 0.0) {
     intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, config.focal);
@@ -175,7 +230,7 @@ int main(int argc, char** argv) {
   if (!config.record.empty()) {
     if (!recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
       std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
-      return 1;
+      return 2;
     }
   }
   epitrack::device::LiveTracker tracker(config.tracker, config.map, intrinsics);
@@ -185,9 +240,9 @@ int main(int argc, char** argv) {
   if (config.poses != "-") {
     out = std::fopen(config.poses.c_str(), "w");
     if (out == nullptr) {
-      std::fprintf(stderr, "epitrack-device: cannot write %s: %s\n", config.poses.c_str(),
+      std::fprintf(stderr, "epitrack-device: --poses: cannot write %s: %s\n", config.poses.c_str(),
                    std::strerror(errno));
-      return 1;
+      return 2;
     }
   }
   static char out_buffer[1 << 16];

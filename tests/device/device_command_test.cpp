@@ -112,7 +112,7 @@ TEST_CASE("epitrack-device rejects bad usage with exit 2", "[device][cli]") {
   CHECK(run(device() + " --source x --config " + dir.file("bad.conf") + " 2>/dev/null") == 2);
   writeText(dir.file("bad2.conf"), "max_points = -4\n");
   CHECK(run(device() + " --source x --config " + dir.file("bad2.conf") + " 2>/dev/null") == 2);
-  CHECK(run(device() + " --source " + dir.file("missing") + " 2>/dev/null >/dev/null") == 1);
+  CHECK(run(device() + " --source " + dir.file("missing") + " 2>/dev/null >/dev/null") == 2);
 }
 
 TEST_CASE("epitrack-device prints one pose line per frame and a final statistics line",
@@ -255,7 +255,8 @@ TEST_CASE("epitrack-device --record writes the frames; replaying them gives the 
   epitrack::test::parseDeviceOutput(readAll(replay), b, summary_b);
   CHECK(b.size() == 40);
   CHECK(epitrack::test::jsonNumberAfter(summary_b, "tracked", -1) > 20);
-  // An unwritable recording target is a runtime failure.
+  // An unwritable recording target named on the command line is refused before the first frame
+  // (exit 2, issue 9: unusable paths given on the command line are usage errors).
   CHECK(run(device() + " --source " + clip + "/frames" + args + " --record /proc/nope.mjpeg" +
-            " --poses " + live + " 2>/dev/null") == 1);
+            " --poses " + live + " 2>/dev/null") == 2);
 }

@@ -174,6 +174,6 @@ TEST_CASE("epitrack-record records Y4M from a pipe", "[hal][record][tools]") {
     REQUIRE(sameImage(f.luma, fr.constView()));
   }
   CHECK(epitrack::test::run(tool + " '" + dir.file("nothing") + "' --out '" + dir.file("x") +
-                            "' 2>/dev/null") == 1);
+                            "' 2>/dev/null") == 2);  // a missing INPUT is a usage error (issue 9)
   CHECK(epitrack::test::run(tool + " --out x 2>/dev/null") == 2);
 }

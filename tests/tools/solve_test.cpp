@@ -106,7 +106,7 @@ TEST_CASE("epitrack-solve solves a short forward dolly", "[solve][cli]") {
 TEST_CASE("epitrack-solve reports bad input clearly", "[solve][cli]") {
   TempDir dir("solve-bad");
   const std::string exe = binaryPath("tools/solve/epitrack-solve");
-  CHECK(run(exe + " " + dir.file("missing") + " --out " + dir.file("o") + " 2>/dev/null") == 1);
+  CHECK(run(exe + " " + dir.file("missing") + " --out " + dir.file("o") + " 2>/dev/null") == 2);
   CHECK(run(exe + " " + dir.path() + " --out " + dir.file("o") + " --bogus 2>/dev/null") == 2);
   CHECK(run(exe + " " + dir.path() + " 2>/dev/null") == 2);  // --out missing
   CHECK(run(exe + " " + dir.path() + " --out " + dir.file("o") +

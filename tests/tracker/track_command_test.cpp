@@ -58,9 +58,9 @@ TEST_CASE("epitrack-track tracks a synthetic clip into tracks.csv", "[tracker][c
   int full = 0;
   for (const auto& [id, n] : length) full += n == 30 ? 1 : 0;
   CHECK(full >= 50);  // most first-frame features survive a slow 30-frame orbit
-  // Bad usage: exit 2; a missing input: exit 1.
+  // Bad usage and a missing input: exit 2 (issue 9).
   CHECK(epitrack::test::run(track + " " + dir.path() + " 2>/dev/null") == 2);
   CHECK(epitrack::test::run(track + " " + dir.path() + "/nothing --out " + dir.file("x.csv") +
-                            " 2>/dev/null") == 1);
+                            " 2>/dev/null") == 2);
   CHECK(epitrack::test::run(track + " --help >/dev/null 2>&1") == 0);
 }

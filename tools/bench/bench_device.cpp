@@ -78,23 +78,20 @@ int runDevice(int argc, const char* const* argv) {
   std::string error;
   if (!input.empty()) {
     if (intrinsics_path.empty()) {
-      std::fprintf(stderr, "epitrack-bench device: INPUT needs --intrinsics FILE\n");
-      return 2;
+      return cl.usageError("INPUT needs --intrinsics FILE");
     }
     if (!loadBenchFrames(input, frames_wanted, frames, error) ||
         !hal::readIntrinsicsFile(intrinsics_path, K, error)) {
       std::fprintf(stderr, "epitrack-bench device: %s\n", error.c_str());
-      return 1;
+      return 2;  // INPUT or --intrinsics named on the command line is unusable
     }
   } else {
     synth::SynthOptions so;
     if (!parseSize(size, so.width, so.height)) {
-      std::fprintf(stderr, "epitrack-bench device: bad --size '%s'\n", size.c_str());
-      return 2;
+      return cl.usageError("--size: expected WxH, got '" + size + "'");
     }
     if (!synth::parseSceneKind(scene, so.kind)) {
-      std::fprintf(stderr, "epitrack-bench device: unknown --scene '%s'\n", scene.c_str());
-      return 2;
+      return cl.usageError("--scene: unknown scene '" + scene + "'");
     }
     so.frames = frames_wanted;
     so.focal = focal > 0.0 ? focal : 0.85 * so.width;

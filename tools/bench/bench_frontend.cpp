@@ -138,7 +138,7 @@ int runFrontend(int argc, const char* const* argv) {
     }
   } else if (!loadBenchFrames(input, max_frames, frames, error)) {
     std::fprintf(stderr, "epitrack-bench frontend: %s\n", error.c_str());
-    return 1;
+    return 2;  // INPUT named on the command line is unusable
   }
   const int w = frames.front().width();
   const int h = frames.front().height();

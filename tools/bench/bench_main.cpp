@@ -7,7 +7,7 @@
 
 int main(int argc, char** argv) {
   auto& reg = epitrack::bench::registry();
-  const auto usage = [&](FILE* out) {
+  const auto usage = [&](std::FILE* out) {
     std::fprintf(out,
                  "usage: epitrack-bench SUBCOMMAND [INPUT] [--repeat N] [--threads 1] [options]\n\n"
                  "Times epitrack's stages (and, when built with -DEPITRACK_BENCH_OPENCV=ON, "
@@ -15,13 +15,18 @@ int main(int argc, char** argv) {
                  "the same data in the same run). Prints one JSON object per line: medians, means "
                  "and p95 of the\n"
                  "repeated runs, and an \"impl\": \"ratio\" line with opencv_ms / "
-                 "epitrack_ms.\n\nsubcommands:\n");
+                 "epitrack_ms.\nExit: 0 done, 1 a run failed, 2 bad command line or unusable "
+                 "INPUT.\n\nsubcommands:\n");
     for (const auto& [name, e] : reg) std::fprintf(out, "  %-10s %s\n", name.c_str(), e.summary);
     std::fprintf(out, "\n'epitrack-bench SUBCOMMAND --help' lists its options.\n");
   };
-  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
-    usage(argc < 2 ? stderr : stdout);
-    return argc < 2 ? 2 : 0;
+  if (argc < 2) {
+    std::fprintf(stderr, "epitrack-bench: missing SUBCOMMAND (see --help)\n");
+    return 2;
+  }
+  if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
+    usage(stdout);
+    return 0;
   }
   const auto it = reg.find(argv[1]);
   if (it == reg.end()) {

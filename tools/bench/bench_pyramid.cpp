@@ -43,7 +43,7 @@ int runPyramid(int argc, const char* const* argv) {
   std::string error;
   if (!loadBenchFrames(input, max_frames, frames, error)) {
     std::fprintf(stderr, "epitrack-bench pyramid: %s\n", error.c_str());
-    return 1;
+    return 2;  // INPUT named on the command line is unusable
   }
   const int w = frames.front().width();
   const int h = frames.front().height();

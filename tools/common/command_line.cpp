@@ -16,14 +16,14 @@ CommandLine::CommandLine(std::string program, std::string synopsis, std::string 
 void CommandLine::option(const std::string& name, const std::string& metavar,
                          const std::string& help,
                          std::function<bool(const std::string&, std::string&)> apply) {
-  options_.push_back({name, metavar, help, std::move(apply), false, false});
+  options_.push_back({name, metavar, help, std::move(apply), {}, false, false});
 }
 
 void CommandLine::flag(const std::string& name, const std::string& help, bool* target) {
-  options_.push_back({name, "", help, [target](const std::string&, std::string&) {
-                        *target = true;
-                        return true;
-                      }});
+  option(name, "", help, [target](const std::string&, std::string&) {
+    *target = true;
+    return true;
+  });
 }
 
 void CommandLine::text(const std::string& name, const std::string& metavar, const std::string& help,
@@ -52,6 +52,9 @@ void CommandLine::integer(const std::string& name, const std::string& metavar,
     *target = static_cast<int>(x);
     return true;
   });
+  std::ostringstream range;  // (a stream: GCC 12's -Wrestrict misfires on the string sum)
+  range << "[" << lo << ".." << hi << "]";
+  options_.back().range = range.str();
 }
 
 void CommandLine::real(const std::string& name, const std::string& metavar, const std::string& help,
@@ -69,6 +72,9 @@ void CommandLine::real(const std::string& name, const std::string& metavar, cons
     *target = x;
     return true;
   });
+  std::ostringstream range;
+  range << "[" << lo << ".." << hi << "]";
+  options_.back().range = range.str();
 }
 
 void CommandLine::choice(const std::string& name, const std::vector<std::string>& choices,
@@ -120,10 +126,18 @@ std::string CommandLine::helpText() const {
   s << "\noptions:\n";
   for (const auto& o : options_) {
     s << "  --" << o.name << (o.metavar.empty() ? "" : " " + o.metavar)
-      << (o.required ? "  (required)" : "") << "\n      " << o.help << "\n";
+      << (o.range.empty() ? "" : "  " + o.range) << (o.required ? "  (required)" : "") << "\n      "
+      << o.help << "\n";
   }
   s << "  --help\n      print this help and exit\n";
   return s.str();
+}
+
+std::vector<std::string> CommandLine::optionNames() const {
+  std::vector<std::string> names;
+  names.reserve(options_.size());
+  for (const auto& o : options_) names.push_back(o.name);
+  return names;
 }
 
 int CommandLine::usageError(const std::string& message) const {

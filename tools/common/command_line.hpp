@@ -19,6 +19,8 @@ class CommandLine {
   /// A generic option; `apply` validates and stores the value, filling `error` when it fails.
   void option(const std::string& name, const std::string& metavar, const std::string& help,
               std::function<bool(const std::string& value, std::string& error)> apply);
+  /// Integer and real options check `lo <= value <= hi`; --help prints the range as `[lo..hi]`
+  /// after the option's name (the command-line test reads it to try values outside).
   void flag(const std::string& name, const std::string& help, bool* target);
   void text(const std::string& name, const std::string& metavar, const std::string& help,
             std::string* target);
@@ -44,6 +46,8 @@ class CommandLine {
   /// Prints "program: message" to stderr and returns 2 (for checks after parsing).
   int usageError(const std::string& message) const;
   [[nodiscard]] const std::string& program() const { return program_; }
+  /// Names of every registered option (without the leading --), in registration order.
+  [[nodiscard]] std::vector<std::string> optionNames() const;
 
  private:
   struct Option {
@@ -51,6 +55,7 @@ class CommandLine {
     std::string metavar;  // empty for flags
     std::string help;
     std::function<bool(const std::string&, std::string&)> apply;
+    std::string range;  // "[lo..hi]" for numbers, empty otherwise
     bool required = false;
     bool seen = false;
   };

@@ -25,6 +25,10 @@ class MaskSource {
     } else {
       paths_.push_back(spec);
     }
+    // The first mask is read now, so that a missing or unreadable --mask is reported before
+    // anything starts (exit 2), not at the first frame.
+    if (!decoder_.decodeFile(paths_.front(), image_, error)) return false;
+    loaded_ = 0;
     return true;
   }
   /// The mask for frame `index` (empty view when there is none).

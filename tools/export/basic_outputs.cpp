@@ -102,7 +102,10 @@ void reprojectionStatistics(const Reconstruction& rec, double& mean_px, double& 
   if (!std::isfinite(median_px)) median_px = median(residuals);
 }
 
-std::string formatSummaryJson(const Reconstruction& rec) {
+std::string formatSummaryJson(const Reconstruction& rec) { return formatSummaryJson(rec, {}); }
+
+std::string formatSummaryJson(const Reconstruction& rec,
+                              const std::vector<std::string>& more_files) {
   int solved = 0;
   int keyframes = 0;
   for (const SolvedCamera& c : rec.cameras) {
@@ -120,6 +123,19 @@ std::string formatSummaryJson(const Reconstruction& rec) {
   j.beginObject();
   j.field("status", rec.status);
   if (!rec.message.empty()) j.field("message", rec.message);
+  if (!rec.interrupted_by.empty()) {
+    j.key("interrupted");
+    j.beginObject();
+    j.field("signal", rec.interrupted_by);
+    j.field("stage", rec.interrupted_stage);
+    if (rec.solve_status.empty()) {
+      j.key("solve_status");
+      j.null();
+    } else {
+      j.field("solve_status", rec.solve_status);
+    }
+    j.endObject();
+  }
   j.field("frames", rec.frames);
   j.field("skipped_frames", rec.skipped_frames);
   j.field("solved_frames", solved);
@@ -166,6 +182,11 @@ std::string formatSummaryJson(const Reconstruction& rec) {
     j.field("coherent", f.coherent);
     j.endObject();
   }
+  j.endArray();
+  j.key("files");
+  j.beginArray();
+  for (const std::string& f : rec.files) j.value(f);
+  for (const std::string& f : more_files) j.value(f);
   j.endArray();
   j.key("cameras");
   j.beginArray();

@@ -26,6 +26,9 @@ std::vector<uint8_t> formatPointsPly(const Reconstruction& rec);
 
 /// summary.json: the ARCHITECTURE.md fields plus extras; non-finite numbers are written as null.
 std::string formatSummaryJson(const Reconstruction& rec);
+/// The same with `more_files` listed after `rec.files` in "files".
+std::string formatSummaryJson(const Reconstruction& rec,
+                              const std::vector<std::string>& more_files);
 
 /// Mean and median reprojection error as summary.json reports them (see Reconstruction).
 void reprojectionStatistics(const Reconstruction& rec, double& mean_px, double& median_px);
@@ -45,9 +48,17 @@ std::string formatBlenderScript(const Reconstruction& rec, const ExportOptions& 
 /// -Z, rotations in degrees for Nuke's default order ZXY (R = Ry * Rx * Rz), vfov in degrees.
 std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& options);
 
+/// The files writeAllOutputs() writes besides summary.json, relative to the directory, in the
+/// order it writes them.
+const std::vector<std::string>& exportFileNames();
+
+/// Writes summary.json alone (atomically), e.g. for a run stopped before anything else existed.
+bool writeSummaryJson(const Reconstruction& rec, const std::string& dir, std::string& error);
+
 /// Writes cameras.tum, intrinsics.txt, points.ply, summary.json, colmap/{cameras,images,
-/// points3D}.txt, blender_camera.py and camera.chan into `dir` (created if missing). Returns
-/// false with a message naming the file on the first failure.
+/// points3D}.txt, blender_camera.py and camera.chan into `dir` (created if missing), then
+/// summary.json with `rec.files` plus these names as its "files". Returns false with a message
+/// naming the file on the first failure.
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir, std::string& error);
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir,
                      const ExportOptions& options, std::string& error);

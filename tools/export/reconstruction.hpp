@@ -87,6 +87,15 @@ struct Reconstruction {
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string status = "ok";       ///< "ok" or the reason the solve failed
   std::string message;             ///< optional human sentence about the status
+  /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",
+  /// "SIGTERM"), the stage it stopped ("tracking", "calibration", ...) and, when the solve itself
+  /// had finished, the solver's own status ("ok", "rotation-only", ...; empty otherwise).
+  std::string interrupted_by;
+  std::string interrupted_stage;
+  std::string solve_status;
+  /// Every output written besides summary.json, relative to the output directory ("files" in
+  /// summary.json); summary.json is written last, so the list is complete when it exists.
+  std::vector<std::string> files;
   std::vector<FocalEstimate> focal_estimates;
   StageSeconds seconds;
 

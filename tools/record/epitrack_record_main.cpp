@@ -28,7 +28,10 @@ int main(int argc, char** argv) {
       "Records INPUT (a frame directory, FILE.y4m, - for Y4M on standard input, FILE.mjpeg or\n"
       "v4l2:/dev/videoN?width=W&height=H&fps=N&format=grey|yuyv|mjpeg) as 8-bit gray frames to an\n"
       ".mjpeg file (JPEG; MJPEG cameras' frames are stored unchanged) or to DIR/000000.pgm...\n"
-      "(lossless). Outputs appear atomically. Ctrl-C stops a live recording cleanly.");
+      "(lossless). Outputs appear atomically. Ctrl-C (SIGINT) or SIGTERM stops a recording\n"
+      "cleanly: what was recorded is kept, exit 0.\n"
+      "Exit: 0 done, 1 the recording failed (lost device, write error; the frames before it\n"
+      "are kept), 2 bad command line or unusable INPUT/--out.");
   cl.positional("INPUT", "what to record", &input);
   cl.text("out", "FILE.mjpeg|DIR", "output file (.mjpeg/.mjpg) or frame directory", &out);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 1 << 30);
@@ -49,14 +52,14 @@ int main(int argc, char** argv) {
   auto source = hal::openFrameSource(input, source_options, error);
   if (!source) {
     std::fprintf(stderr, "epitrack-record: %s\n", error.c_str());
-    return 1;
+    return 2;
   }
   hal::RecorderOptions recorder_options;
   recorder_options.jpeg_quality = quality;
   hal::FrameRecorder recorder;
   if (!recorder.open(out, recorder_options, error)) {
-    std::fprintf(stderr, "epitrack-record: %s\n", error.c_str());
-    return 1;
+    std::fprintf(stderr, "epitrack-record: --out: %s\n", error.c_str());
+    return 2;
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "tools/common/command_line.hpp"
+#include "tools/common/interrupt.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
 #include "tools/solve/solve_pipeline.hpp"
 
@@ -38,7 +39,12 @@ int main(int argc, char** argv) {
       "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
       "summary.json, report.html, colmap/, blender_camera.py, camera.chan and, with --render\n"
       "or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
-      "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.");
+      "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.\n"
+      "Ctrl-C (SIGINT) or SIGTERM stops at the next consistent point: summary.json then says\n"
+      "\"interrupted\" and lists the outputs written; a second Ctrl-C kills at once.\n"
+      "Exit: 0 solved (or a tripod solve), 1 the solve failed (summary.json says why), 2 bad\n"
+      "command line or unusable INPUT/--intrinsics/--mask/--out, 130 (143) stopped by SIGINT\n"
+      "(SIGTERM).");
   cl.positional("INPUT", "frames to solve", &o.input);
   cl.text("out", "DIR", "output directory (created)", &o.out_dir);
   cl.require("out");
@@ -71,19 +77,15 @@ int main(int argc, char** argv) {
           &o.solver.keyframe_parallax_deg, 0.1, 30.0);
   cl.integer("ba-window", "N", "keyframes refined while solving (default 8)", &o.solver.ba_window,
              2, 1000);
-  long long seed = 1;
-  cl.option("seed", "S", "RANSAC seed (default 1)", [&](const std::string& v, std::string& e) {
-    char* end = nullptr;
-    seed = std::strtoll(v.c_str(), &end, 10);
-    if (end == v.c_str() || *end != 0 || seed < 0) {
-      e = "expected a non-negative integer, got '" + v + "'";
-      return false;
-    }
-    return true;
-  });
+  int seed = 1;
+  cl.integer("seed", "S", "RANSAC seed (default 1)", &seed, 0, 2147483647);
   cl.real("max-memory", "MIB",
           "refuse a clip whose buffers would need more than this (default 4096 MiB)",
           &o.max_memory_mib, 16.0, 1e7);
+  cl.flag("force",
+          "replace the outputs of an earlier solve in DIR (without it, a DIR holding one "
+          "is refused)",
+          &o.force);
   cl.flag("quiet", "no progress on stderr", &quiet);
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);
@@ -96,5 +98,6 @@ int main(int argc, char** argv) {
   o.distortion = distortion == "k1k2" ? 2 : distortion == "k1" ? 1 : 0;
   o.solver.seed = static_cast<uint64_t>(seed);
   if (quiet) o.progress = epitrack::io::ProgressReporter::Mode::kQuiet;
+  epitrack::tools::installInterruptHandlers();
   return epitrack::tools::runSolve(o);
 }

@@ -4,7 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <limits>
 #include <memory>
+#include <system_error>
 #include <unordered_map>
 
 #include <Eigen/Geometry>
@@ -14,6 +17,7 @@
 #include "hal/io/file_util.hpp"
 #include "hal/io/image_codec.hpp"
 #include "hal/io/text_formats.hpp"
+#include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
 #include "tools/export/output_writers.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
@@ -62,7 +66,83 @@ uint8_t grayAt(ImageView<const uint8_t> img, double x, double y) {
   return img(ix, iy);
 }
 
+// Every name epitrack-solve writes in its output directory, besides augmented/NNNNNN.jpg.
+std::vector<std::string> solveOutputNames() {
+  std::vector<std::string> names = {"summary.json"};
+  names.insert(names.end(), io::exportFileNames().begin(), io::exportFileNames().end());
+  names.insert(names.end(), {"report.html", "augmented.avi"});
+  return names;
+}
+
+// augmented/NNNNNN.jpg (six digits), the rendered frames.
+bool isAugmentedFrameName(const std::string& name) {
+  if (name.size() != 10 || name.compare(6, 4, ".jpg") != 0) return false;
+  for (int i = 0; i < 6; ++i)
+    if (name[static_cast<std::size_t>(i)] < '0' || name[static_cast<std::size_t>(i)] > '9')
+      return false;
+  return true;
+}
+
+// Removes the files of an earlier solve (--force) and the folders they leave empty; nothing else.
+bool removePreviousSolve(const std::string& dir, const std::vector<std::string>& files,
+                         std::string& error) {
+  namespace fs = std::filesystem;
+  for (const auto& f : files) {
+    std::error_code ec;
+    fs::remove(fs::path(dir) / f, ec);
+    if (ec) {
+      error = "cannot remove '" + (fs::path(dir) / f).string() + "': " + ec.message();
+      return false;
+    }
+  }
+  for (const char* sub : {"augmented", "colmap"}) {
+    std::error_code ec;
+    if (fs::is_directory(fs::path(dir) / sub, ec) && fs::is_empty(fs::path(dir) / sub, ec))
+      fs::remove(fs::path(dir) / sub, ec);
+  }
+  return true;
+}
+
+// Ends a run stopped by SIGINT/SIGTERM before any output but summary.json was consistent:
+// summary.json (atomically) says so and lists no other file. Returns the exit code.
+int stopInterrupted(io::Reconstruction& rec, const std::string& out_dir, const char* stage,
+                    const std::string& detail) {
+  rec.status = "interrupted";
+  rec.interrupted_by = interruptSignalName();
+  rec.interrupted_stage = stage;
+  rec.message = std::string("stopped by ") + rec.interrupted_by + " during " + stage + " (" +
+                detail + "); no output but summary.json was written";
+  std::string error;
+  if (!io::writeSummaryJson(rec, out_dir, error)) {
+    fail(error.c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "epitrack-solve: interrupted: %s\n", rec.message.c_str());
+  return interruptExitCode();
+}
+
 }  // namespace
+
+std::vector<std::string> previousSolveFiles(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> found;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return found;
+  for (const auto& name : solveOutputNames()) {
+    if (fs::exists(fs::path(dir) / name, ec)) found.push_back(name);
+  }
+  const fs::path augmented = fs::path(dir) / "augmented";
+  if (fs::is_directory(augmented, ec)) {
+    std::vector<std::string> frames;
+    for (const auto& entry : fs::directory_iterator(augmented, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (isAugmentedFrameName(name)) frames.push_back("augmented/" + name);
+    }
+    std::sort(frames.begin(), frames.end());
+    found.insert(found.end(), frames.begin(), frames.end());
+  }
+  return found;
+}
 
 double estimateSolveMemoryBytes(int width, int height, int max_features, int window, long frames) {
   const double pixels = static_cast<double>(width) * static_cast<double>(height);
@@ -104,22 +184,39 @@ int runSolve(const SolveCommandOptions& o) {
   }
   so.refine_distortion = o.distortion;
 
-  // --- 2D tracking of the whole clip ---------------------------------------------------------
+  // --- everything named on the command line is checked before anything is written ---------
   hal::SourceOptions source_options;
   auto source = hal::openFrameSource(o.input, source_options, error);
   if (!source) {
     fail(error.c_str());
-    return 1;
-  }
-  if (!hal::makeDirectories(o.out_dir, error)) {
-    fail(error.c_str());
-    return 1;
+    return 2;
   }
   MaskSource masks;
   if (!masks.open(o.mask, error)) {
     fail(error.c_str());
     return 2;
   }
+  if (const auto previous = previousSolveFiles(o.out_dir); !previous.empty()) {
+    if (!o.force) {
+      const std::string msg =
+          "'" + o.out_dir + "' already holds the outputs of a solve (" + previous.front() +
+          (previous.size() > 1 ? " and " + std::to_string(previous.size() - 1) + " more files"
+                               : std::string()) +
+          "); pass --force to overwrite it";
+      fail(msg.c_str());
+      return 2;
+    }
+    if (!removePreviousSolve(o.out_dir, previous, error)) {
+      fail(error.c_str());
+      return 1;
+    }
+  }
+  if (!hal::makeDirectories(o.out_dir, error)) {
+    fail(error.c_str());
+    return 2;
+  }
+
+  // --- 2D tracking of the whole clip ---------------------------------------------------------
   const long expected = static_cast<long>(source->info().frame_count);
   progress.begin("tracking", expected);
   std::unique_ptr<FeatureTracker> tracker;
@@ -133,7 +230,10 @@ int runSolve(const SolveCommandOptions& o) {
   int width = 0, height = 0, frames = 0, skipped = 0;
   std::string input_error;  // why reading stopped before the end of the stream, if it did
   hal::Frame frame;
+  // A stop signal is looked at between frames: the frames tracked so far are consistent, but a
+  // solve of a clip cut short is not what was asked for, so only summary.json is written.
   for (;;) {
+    if (interruptRequested()) break;
     const hal::FrameStatus st = source->next(frame);
     if (st == hal::FrameStatus::kEndOfStream) break;
     if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
@@ -201,6 +301,19 @@ int runSolve(const SolveCommandOptions& o) {
     progress.update(frames);
   }
   progress.end();
+  rec.frames = frames;
+  rec.skipped_frames = skipped;
+  if (interruptRequested()) {
+    // Nothing is known of the solve: null focal, "unknown" source and motion.
+    rec.intrinsics = have_given ? given
+                                : CameraIntrinsics::centered(
+                                      width, height, std::numeric_limits<double>::quiet_NaN());
+    rec.focal_source = have_given ? "given" : "unknown";
+    rec.focal_observable = false;
+    rec.motion = "unknown";
+    return stopInterrupted(rec, o.out_dir, "tracking",
+                           std::to_string(frames) + " frames tracked, nothing solved");
+  }
   if (frames == 0) {
     fail("the input holds no readable frame");
     return 1;
@@ -219,19 +332,37 @@ int runSolve(const SolveCommandOptions& o) {
   }
   Solver solver(tracks, width, height, so);
   progress.begin("solving", 4);
+  // A stop signal is looked at between the solver's stages (each runs to its end). Before the
+  // final adjustment has run the cameras are not final, and nothing but summary.json is written;
+  // after it, the solve is complete and its exports are written (quickly) before stopping.
+  const auto stopped = [&](const char* stage) {
+    progress.end();
+    rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
+    rec.focal_source = solver.focalSource();
+    rec.focal_observable = solver.focalObservable();
+    rec.motion = solver.motion();
+    return stopInterrupted(rec, o.out_dir, stage,
+                           std::to_string(frames) + " frames tracked, solve not finished");
+  };
   bool ok = solver.calibrate();
   clock.lap("calibration");
   progress.update(1);
+  if (interruptRequested()) return stopped("calibration");
   ok = ok && solver.initialize();
   clock.lap("initialization");
   progress.update(2);
+  if (interruptRequested()) return stopped("initialization");
   ok = ok && solver.registerFrames();
   clock.lap("registration");
   progress.update(3);
+  if (interruptRequested()) return stopped("registration");
   ok = ok && solver.finalize();
   clock.lap("bundle_adjustment");
   progress.update(4);
   progress.end();
+  // From here the solve is complete: a stop signal skips the rest of the rendering only.
+  std::string stop_stage;
+  if (interruptRequested()) stop_stage = "bundle_adjustment";
 
   // --- reconstruction ------------------------------------------------------------------------
   rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
@@ -240,8 +371,6 @@ int runSolve(const SolveCommandOptions& o) {
   rec.intrinsics.fy = solver.focal() * solver.aspect();
   rec.intrinsics.k1 = solver.k1();
   rec.intrinsics.k2 = solver.k2();
-  rec.frames = frames;
-  rec.skipped_frames = skipped;
   rec.focal_source = solver.focalSource();
   rec.focal_observable = solver.focalObservable();
   rec.motion = solver.motion();
@@ -304,7 +433,7 @@ int runSolve(const SolveCommandOptions& o) {
   report.render_object = o.render;
   report.has_object = o.render != "none";
   report.object_at = o.object_at;
-  if (draw_frames && solver.solvedFrames() > 0) {
+  if (draw_frames && solver.solvedFrames() > 0 && stop_stage.empty()) {
     const std::string aug_dir = o.out_dir + "/augmented";
     if (!hal::makeDirectories(aug_dir, error)) {
       fail(error.c_str());
@@ -354,6 +483,10 @@ int runSolve(const SolveCommandOptions& o) {
     progress.begin("rendering", frames);
     int index = 0;
     for (int f = 0; f < frames;) {
+      if (interruptRequested()) {  // the frames rendered so far stay, the video ends with them
+        stop_stage = "rendering";
+        break;
+      }
       ImageView<const uint8_t> luma;
       if (keep_frames) {
         luma = kept[static_cast<std::size_t>(f)].constView();
@@ -410,9 +543,24 @@ int runSolve(const SolveCommandOptions& o) {
       char rel[40];
       std::snprintf(rel, sizeof(rel), "augmented/%06d.jpg", i);
       report.augmented_frames.emplace_back(i, rel);
+      rec.files.emplace_back(rel);
     }
     report.video = "augmented.avi";
+    rec.files.emplace_back("augmented.avi");
     clock.lap("rendering");
+  }
+  if (stop_stage.empty() && interruptRequested()) stop_stage = "exports";
+  if (!stop_stage.empty()) {
+    rec.solve_status = rec.status;
+    rec.status = "interrupted";
+    rec.interrupted_by = interruptSignalName();
+    rec.interrupted_stage = stop_stage;
+    rec.message =
+        std::string("stopped by ") + rec.interrupted_by + " during " + stop_stage +
+        " after the solve had finished (" + rec.solve_status +
+        "); the solve's outputs were written" +
+        (stop_stage == "rendering" ? ", the augmented frames only up to the stop" : std::string()) +
+        (rec.message.empty() ? std::string() : "; " + rec.message);
   }
 
   // report.html before the exports: summary.json stays the last file written.
@@ -420,6 +568,7 @@ int runSolve(const SolveCommandOptions& o) {
     fail(error.c_str());
     return 1;
   }
+  rec.files.insert(rec.files.begin(), "report.html");
   if (!io::writeAllOutputs(rec, o.out_dir, error)) {
     fail(error.c_str());
     return 1;
@@ -435,6 +584,10 @@ int runSolve(const SolveCommandOptions& o) {
                 rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
   if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
+  if (!stop_stage.empty()) {
+    std::fprintf(stderr, "epitrack-solve: interrupted: %s\n", rec.message.c_str());
+    return interruptExitCode();
+  }
   if (!input_error.empty()) {
     std::fprintf(stderr, "epitrack-solve: input stopped early: %s\n", input_error.c_str());
     return 1;

@@ -31,15 +31,24 @@ struct SolveCommandOptions {
   SolverOptions solver;
   io::ProgressReporter::Mode progress = io::ProgressReporter::Mode::kAuto;
   double max_memory_mib = 4096.0;  ///< refuse inputs whose buffers would need more (--max-memory)
+  bool force = false;              ///< --force: replace the outputs of an earlier solve in out_dir
 };
+
+/// The files of an earlier solve in `dir` (relative names: summary.json, cameras.tum, ...,
+/// augmented/NNNNNN.jpg); empty when there is none. Other files are never counted.
+std::vector<std::string> previousSolveFiles(const std::string& dir);
 
 /// Bytes the solve reserves up front for a clip of this size: the tracker's frame, pyramid,
 /// gradient and template buffers plus the track table for `frames` frames (a lower bound of
 /// the peak; the solver's own state is small beside it).
 double estimateSolveMemoryBytes(int width, int height, int max_features, int window, long frames);
 
-/// Runs the whole solve and writes every output. Returns the process exit code (0 solved, 1 a
-/// runtime failure, with summary.json saying why whenever the clip could be read).
+/// Runs the whole solve and writes every output. Returns the process exit code: 0 solved (or a
+/// tripod solve), 1 a runtime failure (summary.json says why whenever the clip could be read),
+/// 2 an unusable INPUT, --intrinsics, --mask or --out (one line on stderr, nothing written), or
+/// 128 + the signal (130 SIGINT, 143 SIGTERM) when a stop signal ended it early: then
+/// summary.json has status "interrupted" and lists the consistent outputs written (see
+/// tools/common/interrupt.hpp; the caller installs the handler).
 int runSolve(const SolveCommandOptions& options);
 
 }  // namespace epitrack::tools

@@ -82,8 +82,8 @@ int main(int argc, char** argv) {
 
   std::string error;
   if (!hal::makeDirectories(out_dir + "/frames", error)) {
-    std::fprintf(stderr, "epitrack-synth: %s\n", error.c_str());
-    return 1;
+    std::fprintf(stderr, "epitrack-synth: --out: %s\n", error.c_str());
+    return 2;  // the directory named on the command line cannot be created
   }
   const auto t0 = std::chrono::steady_clock::now();
   const synth::SyntheticSequence seq(o);

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "algo/image/image.hpp"
 #include "algo/tracking/feature_tracker.hpp"
 #include "hal/frame_source.hpp"
@@ -16,6 +18,7 @@
 #include "hal/io/image_codec.hpp"
 #include "hal/io/tracks_csv.hpp"
 #include "tools/common/command_line.hpp"
+#include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
 
 namespace hal = epitrack::hal;
@@ -39,7 +42,11 @@ int main(int argc, char** argv) {
       "epitrack-track", "INPUT --out tracks.csv [options]",
       "Tracks Shi-Tomasi corners through INPUT with pyramidal Lucas-Kanade and a Kalman\n"
       "gate, re-detecting as tracks are lost, and writes tracks.csv (frame,track_id,x,y).\n"
-      "INPUT: a frame directory, .y4m, .mjpeg or v4l2:/dev/videoN (see the README).");
+      "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg or v4l2:/dev/videoN.\n"
+      "tracks.csv is written atomically once tracking ends. Ctrl-C (SIGINT) or SIGTERM stops\n"
+      "between frames and writes tracks.csv complete for the frames tracked so far.\n"
+      "Exit: 0 done, 1 tracking failed (unreadable stream, size change; nothing written),\n"
+      "2 bad command line or unusable INPUT/--mask, 130 (143) stopped by SIGINT (SIGTERM).");
   cl.positional("INPUT", "frames to track", &input);
   cl.text("out", "FILE", "tracks.csv to write", &out);
   cl.require("out");
@@ -104,20 +111,33 @@ int main(int argc, char** argv) {
   auto source = hal::openFrameSource(input, {}, error);
   if (!source) {
     std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
-    return 1;
+    return 2;
   }
   MaskSource masks;
   if (!masks.open(mask_spec, error)) {
     std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
-    return 1;
+    return 2;
   }
+  {
+    // tracks.csv is written at the end: a directory that cannot take it is refused up front.
+    const auto slash = out.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "." : out.substr(0, slash + 1);
+    if (!hal::isDirectory(dir) || ::access(dir.c_str(), W_OK) != 0 || hal::isDirectory(out)) {
+      std::fprintf(stderr, "epitrack-track: --out: cannot write '%s' (%s)\n", out.c_str(),
+                   hal::isDirectory(out) ? "a directory" : "no writable directory");
+      return 2;
+    }
+  }
+  epitrack::tools::installInterruptHandlers();
   std::unique_ptr<FeatureTracker> tracker;
   std::vector<hal::TrackRow> rows;
   std::map<int32_t, int> lengths;
   int frames = 0;
   double ms_total = 0.0;
   hal::Frame frame;
-  while (max_frames == 0 || frames < max_frames) {
+  // A stop signal is looked at between frames; the rows of the frames tracked so far are then
+  // written as a complete tracks.csv (never a partial frame).
+  while ((max_frames == 0 || frames < max_frames) && !epitrack::tools::interruptRequested()) {
     const hal::FrameStatus st = source->next(frame);
     if (st == hal::FrameStatus::kEndOfStream) break;
     if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
@@ -136,7 +156,7 @@ int main(int argc, char** argv) {
     epitrack::ImageView<const uint8_t> mask;
     if (!masks.maskFor(frames, frame.luma.width, frame.luma.height, mask, error)) {
       std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());
-      return 1;
+      return 2;  // the --mask named on the command line does not fit the frames
     }
     const auto t0 = std::chrono::steady_clock::now();
     if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
@@ -169,7 +189,8 @@ int main(int argc, char** argv) {
                    tracker->features().size());
     }
   }
-  if (frames == 0) {
+  const bool interrupted = epitrack::tools::interruptRequested();
+  if (frames == 0 && !interrupted) {
     std::fprintf(stderr, "epitrack-track: %s: no frames\n", input.c_str());
     return 1;
   }
@@ -193,8 +214,13 @@ int main(int argc, char** argv) {
                  "%.2f ms/frame -> %s\n",
                  frames, len.size(), mean, len.empty() ? 0 : len[len.size() / 2], at_least(5),
                  at_least(10), at_least(20), at_least(50),
-                 static_cast<double>(rows.size()) / frames, rows.size(), ms_total / frames,
-                 out.c_str());
+                 static_cast<double>(rows.size()) / std::max(frames, 1), rows.size(),
+                 ms_total / std::max(frames, 1), out.c_str());
+  }
+  if (interrupted) {
+    std::fprintf(stderr, "epitrack-track: interrupted by %s after %d frames; %s holds them\n",
+                 epitrack::tools::interruptSignalName(), frames, out.c_str());
+    return epitrack::tools::interruptExitCode();
   }
   return 0;
 }

@@ -376,6 +376,10 @@ int runSolve(int argc, const char* const* argv) {
   std::vector<hal::TrajectoryEntry> gt;
   std::string error;
   double true_focal = focal;
+  if (!input.empty() && true_focal <= 0.0) {
+    std::fprintf(stderr, "epitrack-bench solve: --focal is needed with an INPUT\n");
+    return 2;
+  }
   if (input.empty()) {
     synth::SynthOptions so;
     so.frames = frame_count;
@@ -391,10 +395,7 @@ int runSolve(int argc, const char* const* argv) {
     }
   } else if (!loadBenchFrames(input, frame_count, frames, error)) {
     std::fprintf(stderr, "epitrack-bench solve: %s\n", error.c_str());
-    return 1;
-  } else if (true_focal <= 0.0) {
-    std::fprintf(stderr, "epitrack-bench solve: --focal is needed with an INPUT\n");
-    return 2;
+    return 2;  // INPUT named on the command line is unusable
   }
   const int n = static_cast<int>(frames.size());
   std::vector<SolveRun> given, self;

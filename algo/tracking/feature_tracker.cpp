@@ -39,6 +39,26 @@ double msSince(StageClock t0) {
 
 }  // namespace
 
+const char* trackLossName(TrackLoss loss) {
+  switch (loss) {
+    case TrackLoss::kLeftImage:
+      return "left-image";
+    case TrackLoss::kLowTexture:
+      return "low-texture";
+    case TrackLoss::kNoConvergence:
+      return "no-convergence";
+    case TrackLoss::kResidual:
+      return "residual";
+    case TrackLoss::kForwardBackward:
+      return "forward-backward";
+    case TrackLoss::kGate:
+      return "gate";
+    case TrackLoss::kMask:
+      return "mask";
+  }
+  return "unknown";
+}
+
 FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, int height)
     : options_(options),
       width_(width),
@@ -59,6 +79,7 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
   live_points_.resize(n);
   corners_.resize(n);
   output_.resize(n);
+  lost_.resize(n);
 }
 
 void FeatureTracker::detect(ImageView<const uint8_t> mask) {
@@ -224,6 +245,9 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
   }
   c.predicted_x = px;
   c.predicted_y = py;
+  if (measurement_hook_ != nullptr && c.status == LkStatus::kTracked) {
+    measurement_hook_(measurement_hook_context_, t.id, frame_index_, c.x, c.y);
+  }
   if (!young && c.status == LkStatus::kTracked) {
     const auto k = static_cast<std::size_t>(moved_count_++);
     moved_x_[k] = x0;
@@ -237,19 +261,22 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
                                ImageView<const uint8_t> mask) {
   Track& t = tracks_[s];
   const Candidate& c = t.candidate;
-  auto drop = [&](int& counter) {
+  auto drop = [&](int& counter, TrackLoss reason) {
     ++counter;
     t.live = false;
     --live_count_;
+    lost_[static_cast<std::size_t>(lost_count_++)] = LostTrack{t.id, t.x, t.y, t.age, reason};
   };
   if (c.status != LkStatus::kTracked) {
     ++stats_.lost_lk;
-    stats_.lost_left_image += c.status == LkStatus::kLeftImage ? 1 : 0;
-    stats_.lost_no_convergence += c.status == LkStatus::kNoConvergence ? 1 : 0;
-    stats_.lost_low_texture += c.status == LkStatus::kLowTexture ? 1 : 0;
-    t.live = false;
-    --live_count_;
-    return;
+    switch (c.status) {
+      case LkStatus::kLeftImage:
+        return drop(stats_.lost_left_image, TrackLoss::kLeftImage);
+      case LkStatus::kLowTexture:
+        return drop(stats_.lost_low_texture, TrackLoss::kLowTexture);
+      default:
+        return drop(stats_.lost_no_convergence, TrackLoss::kNoConvergence);
+    }
   }
   // Thresholds scale with the frame's typical residual (noise, blur, compression of real
   // footage raise every track's residual alike; a clean rendering keeps the fixed ones).
@@ -267,23 +294,23 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
       std::max(options_.max_residual_jump, options_.residual_scale_young * residual_scale);
   if (res > max_res || (young && res > young_max) ||
       (!young && res > static_cast<double>(t.residual_level) + jump)) {
-    return drop(stats_.lost_residual);
+    return drop(stats_.lost_residual, TrackLoss::kResidual);
   }
   // The forward-backward check: every young track (it has no velocity for the gate yet), tracks
   // whose appearance drifted (before their template is refreshed), or every track if asked.
   const bool check =
       options_.forward_backward_px > 0.0 && (young || options_.forward_backward || res > refresh);
   if (check && !forwardBackward(t.x, t.y, c.x, c.y, c.predicted_x, c.predicted_y)) {
-    return drop(stats_.lost_forward_backward);
+    return drop(stats_.lost_forward_backward, TrackLoss::kForwardBackward);
   }
   if (!mask.empty()) {
     const int mx = std::clamp(static_cast<int>(std::lround(c.x)), 0, width_ - 1);
     const int my = std::clamp(static_cast<int>(std::lround(c.y)), 0, height_ - 1);
-    if (mask(mx, my) == 0) return drop(stats_.lost_mask);
+    if (mask(mx, my) == 0) return drop(stats_.lost_mask, TrackLoss::kMask);
   }
   if (options_.kalman_gate) {
     // A track seen once has no velocity: its first displacement is judged by the check above.
-    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate);
+    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate, TrackLoss::kGate);
     t.kalman.correct(c.x, c.y);
   }
   t.x = c.x;
@@ -309,6 +336,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   if (frame.width != width_ || frame.height != height_) return Status::kSizeMismatch;
   if (!mask.empty() && !sameSize(mask, frame)) return Status::kSizeMismatch;
   stats_ = FrameStats{};
+  lost_count_ = 0;
   current_ = 1 - current_;
   auto t0 = stageNow();
   pyramids_[current_].build(frame);

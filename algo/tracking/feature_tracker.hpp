@@ -68,6 +68,31 @@ struct FeatureTrackerOptions {
   KalmanCvOptions kalman{};
 };
 
+/// Why a track was dropped (see FeatureTracker::lost).
+enum class TrackLoss : uint8_t {
+  kLeftImage,        ///< the LK window left the image
+  kLowTexture,       ///< the template has too little texture
+  kNoConvergence,    ///< the LK update did not settle
+  kResidual,         ///< residual too high, or a jump above the track's level (occlusion)
+  kForwardBackward,  ///< the forward-backward check failed
+  kGate,             ///< outside the Kalman gate (the paper §4.2)
+  kMask,             ///< moved into a masked region
+};
+const char* trackLossName(TrackLoss loss);
+
+/// A track dropped in the last frame, with its last accepted position.
+struct LostTrack {
+  int32_t id = 0;
+  float x = 0.0f;
+  float y = 0.0f;
+  int32_t age = 0;
+  TrackLoss reason = TrackLoss::kGate;
+};
+
+/// Fault injection (tests of the outlier gate): called with every track's LK measurement of the
+/// frame before it is judged; it may move (x, y). `frame` counts track() calls from 0.
+using MeasurementHook = void (*)(void* context, int32_t track_id, int frame, float& x, float& y);
+
 /// Per-frame figures of the last `track` call (for benchmarks and logs). Times are processor
 /// milliseconds of the process (std::clock), so a busy machine does not inflate them.
 struct FrameStats {
@@ -113,7 +138,16 @@ class FeatureTracker {
   [[nodiscard]] std::span<const TrackedFeature> features() const {
     return {output_.data(), static_cast<std::size_t>(output_count_)};
   }
+  /// Tracks dropped by the last `track` call, with the reason (valid until the next call).
+  [[nodiscard]] std::span<const LostTrack> lost() const {
+    return {lost_.data(), static_cast<std::size_t>(lost_count_)};
+  }
   [[nodiscard]] const FrameStats& lastStats() const { return stats_; }
+  /// Installs (or with nullptr removes) a measurement hook; see MeasurementHook.
+  void setMeasurementHook(MeasurementHook hook, void* context) {
+    measurement_hook_ = hook;
+    measurement_hook_context_ = context;
+  }
   [[nodiscard]] const FeatureTrackerOptions& options() const { return options_; }
   [[nodiscard]] int frameCount() const { return frame_index_; }
   [[nodiscard]] const Pyramid& pyramid() const { return pyramids_[current_]; }
@@ -166,6 +200,10 @@ class FeatureTracker {
   std::vector<Point2f> live_points_;  // scratch for the detector
   std::vector<Corner> corners_;       // scratch for the detector
   std::vector<TrackedFeature> output_;
+  std::vector<LostTrack> lost_;  // max_features slots
+  int lost_count_ = 0;
+  MeasurementHook measurement_hook_ = nullptr;
+  void* measurement_hook_context_ = nullptr;
   // Displacements of the tracks tracked so far this frame (for neighbour priors), and scratch.
   std::vector<float> moved_x_, moved_y_, moved_dx_, moved_dy_, scratch_dx_, scratch_dy_;
   int moved_count_ = 0;

@@ -38,6 +38,12 @@ struct LkOptions {
   double min_eigen = 4.0;     ///< minimum eigenvalue of the mean gradient matrix, (gray/px)^2
   double max_residual = 1e9;  ///< kResidualTooHigh beyond this relative residual (see align)
   bool affine = true;         ///< base level: affine warp + bias instead of translation + bias
+  /// The residual is measured over the central (2 r + 1)^2 pixels of the window, r this radius
+  /// (-1: a quarter of the window side, 5 for 21x21; 0 or >= half the window: all of it). The
+  /// point is visible when its neighbourhood matches: structure entering the window's rim (an
+  /// occluder approaching, the background beside a box edge, perspective beyond the affine
+  /// warp) must not kill a track whose centre still follows its template.
+  int residual_radius = -1;
 };
 
 /// Pyramidal Lucas-Kanade tracking of translation plus an intensity offset (bias), after
@@ -72,8 +78,9 @@ class PyramidalLk {
 
   /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
   /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and
-  /// `residual` the RMS error at the base level after removing the intensity offset, divided by
-  /// the template's intensity standard deviation (0: identical; about 1.4: unrelated patches).
+  /// `residual` the RMS error at the base level after removing the intensity offset over the
+  /// central residual window (LkOptions::residual_radius), divided by the template's intensity
+  /// standard deviation there (0: identical; about 1.4: unrelated patches).
   LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, float& residual) const {
     PatchShape shape;
     return align(slot, pyramid, x, y, shape, residual);
@@ -97,7 +104,8 @@ class PyramidalLk {
     double offset_x = 0.0;  ///< feature position minus the template's integer centre (level px)
     double offset_y = 0.0;
     bool valid = false;
-    double contrast = 1.0;  ///< standard deviation of the template intensities (gray levels)
+    double contrast = 1.0;         ///< standard deviation of the template intensities (gray levels)
+    double centre_contrast = 1.0;  ///< ... over the residual's central window (base level)
     std::array<double, 9> H_inv{};  ///< inverse of the 3x3 Gauss-Newton Hessian (x, y, bias)
   };
   [[nodiscard]] std::size_t patchIndex(int slot, int level) const {
@@ -106,6 +114,10 @@ class PyramidalLk {
            static_cast<std::size_t>(area_);
   }
   void setAffineHessian(int slot);
+  /// Relative residual (see align) over the central residual window of slot `slot`'s base
+  /// template placed at centre (cx, cy) with shape A in `image`; negative when outside.
+  double centreResidual(int slot, ImageView<const uint8_t> image, double cx, double cy,
+                        const double (&A)[4]) const;
   /// Affine inverse-compositional iterations on the base level: (cx, cy) the template centre in
   /// the image and A its shape, updated in place.
   LkStatus alignAffine(int slot, ImageView<const uint8_t> image, double& cx, double& cy,
@@ -120,6 +132,7 @@ class PyramidalLk {
   int half_ = 0;
   int side_ = 0;
   int area_ = 0;
+  int residual_radius_ = 0;
   AlignedBuffer<int16_t> value_;   // template values << kValueBits
   AlignedBuffer<int16_t> grad_x_;  // Scharr (unnormalised, 32 x intensity per pixel)
   AlignedBuffer<int16_t> grad_y_;

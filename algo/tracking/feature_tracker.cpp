@@ -26,6 +26,7 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   l.epsilon = o.epsilon;
   l.min_eigen = o.min_eigen;
   l.affine = o.affine;
+  l.residual_radius = o.residual_radius;
   return l;
 }
 
@@ -116,6 +117,19 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
 }
 
 namespace {
+
+/// How far the affine shape A stretches its template: max(s1, 1 / s2) of A's singular values
+/// s1 >= s2 (1 for a rotation).
+double shapeStretch(const PatchShape& A) {
+  const double a = A.a00, b = A.a01, c = A.a10, d = A.a11;
+  // Singular values of [a b; c d]: sqrt of the eigenvalues of A^T A.
+  const double p = a * a + b * b + c * c + d * d;
+  const double det = std::abs(a * d - b * c);
+  const double disc = std::sqrt(std::max(p * p - 4.0 * det * det, 0.0));
+  const double s1 = std::sqrt(0.5 * (p + disc));
+  const double s2 = det / std::max(s1, 1e-12);
+  return std::max(s1, 1.0 / std::max(s2, 1e-12));
+}
 
 /// Median of values[0, n) (partially reorders them). n > 0.
 float medianOf(float* values, int n) {
@@ -298,8 +312,10 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   }
   // The forward-backward check: every young track (it has no velocity for the gate yet), tracks
   // whose appearance drifted (before their template is refreshed), or every track if asked.
+  const double stretch = shapeStretch(c.shape);
+  const bool drifted = res > refresh || stretch >= options_.refresh_stretch;
   const bool check =
-      options_.forward_backward_px > 0.0 && (young || options_.forward_backward || res > refresh);
+      options_.forward_backward_px > 0.0 && (young || options_.forward_backward || drifted);
   if (check && !forwardBackward(t.x, t.y, c.x, c.y, c.predicted_x, c.predicted_y)) {
     return drop(stats_.lost_forward_backward, TrackLoss::kForwardBackward);
   }
@@ -319,7 +335,8 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   t.residual = c.residual;
   t.shape = c.shape;
   t.residual_level = young ? c.residual : 0.7f * t.residual_level + 0.3f * c.residual;
-  if (check && res > refresh) {
+  if (check && ((res > refresh && stretch >= options_.refresh_min_stretch) ||
+                stretch >= options_.refresh_stretch)) {
     // Appearance drifted (perspective, scale, light) but the patch still follows the point from
     // the last frame: the check's template (taken here, in this frame) becomes the track's,
     // keeping the track's residual level.

@@ -40,9 +40,11 @@ struct FeatureTrackerOptions {
   /// neighbours tracked in the same frame (within neighbour_radius of the larger image side).
   bool neighbour_prior = true;
   double neighbour_radius = 0.15;
-  double epsilon = 0.01;   ///< LK convergence, px
-  double min_eigen = 4.0;  ///< LK texture threshold, (gray/px)^2 per pixel
-  // Residuals are relative: RMS error after the intensity offset / template contrast (see
+  double epsilon = 0.01;     ///< LK convergence, px
+  double min_eigen = 4.0;    ///< LK texture threshold, (gray/px)^2 per pixel
+  int residual_radius = -1;  ///< LK residual over the central window (see LkOptions)
+  // Residuals are relative: RMS error after the intensity offset / template contrast, over the
+  // central 11x11 of the window (see
   // PyramidalLk::align). With the affine template the residual stays small while the point is
   // visible; occlusion or sliding onto other structure raises it, and so do noise, blur and
   // compression on real footage, for every track alike. So each threshold is the larger of a
@@ -55,11 +57,21 @@ struct FeatureTrackerOptions {
   double residual_scale_max = 3.0;    ///< ... or this many frame medians
   double residual_scale_jump = 1.5;   ///< ... or this many frame medians
   double residual_scale_young = 3.0;  ///< a young track's first residual: this many medians
-  /// Beyond this residual (or residual_scale_refresh frame medians) a track must pass the
-  /// forward-backward check, then takes a new template at its position (appearance drifted:
-  /// perspective, scale, light); each refresh costs one re-sampling error.
-  double refresh_residual = 0.5;
+  /// Template refresh (the template update problem, Matthews, Ishikawa & Baker 2004): a track
+  /// whose template no longer looks like its patch must pass the forward-backward check, then
+  /// takes a new template at its position; each refresh costs one re-sampling error. A track
+  /// qualifies when its residual exceeds refresh_residual (or residual_scale_refresh frame
+  /// medians) while its affine shape stretches the template by at least refresh_min_stretch
+  /// (singular values beyond [1/s, s]; appearance changed by the warp: foreshortening, scale,
+  /// the resampling blur), or whatever its residual once the stretch reaches refresh_stretch
+  /// (before the alignment of a strongly warped template turns biased). A residual that grows
+  /// while the shape stays close to a rotation is occlusion or another surface sliding in: such
+  /// tracks are not refreshed (they die at max_residual), so they cannot follow an occluding
+  /// edge.
+  double refresh_residual = 0.4;
   double residual_scale_refresh = 1.5;
+  double refresh_min_stretch = 1.3;
+  double refresh_stretch = 1.4;
   /// The forward-backward check (young and drifted tracks): the track's patch in this frame,
   /// aligned back into the previous frame from the mirrored prediction, must land within this
   /// of where the track came from (0: no check, no refresh).

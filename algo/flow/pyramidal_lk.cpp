@@ -35,11 +35,13 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   half_ = options_.window / 2;
   side_ = options_.window;
   area_ = side_ * side_;
+  tstride_ = (side_ + 7) / 8 * 8;
+  patch_size_ = side_ * tstride_;
   residual_radius_ = options_.residual_radius < 0 ? side_ / 4 : options_.residual_radius;
   if (residual_radius_ == 0 || residual_radius_ > half_) residual_radius_ = half_;
   const std::size_t total = static_cast<std::size_t>(capacity_) *
                             static_cast<std::size_t>(level_count_) *
-                            static_cast<std::size_t>(area_);
+                            static_cast<std::size_t>(patch_size_);
   value_.reserve(std::max<std::size_t>(total, 1));
   grad_x_.reserve(std::max<std::size_t>(total, 1));
   grad_y_.reserve(std::max<std::size_t>(total, 1));
@@ -88,8 +90,8 @@ void PyramidalLk::setAffineHessian(int slot) {
   Eigen::Matrix<double, 7, 1> J;
   for (int v = 0; v < side_; ++v) {
     for (int u = 0; u < side_; ++u) {
-      const double gx = Sx[v * side_ + u];
-      const double gy = Sy[v * side_ + u];
+      const double gx = Sx[v * tstride_ + u];
+      const double gy = Sy[v * tstride_ + u];
       const double du = u - half_;
       const double dv = v - half_;
       J << gx, gy, du * gx, dv * gx, du * gy, dv * gy, static_cast<double>(1 << kValueBits);
@@ -162,7 +164,7 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
                        3 * (r2[xx + 1] - r2[xx - 1]);
         const int gy =
             3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
-        const int i = v * side_ + u;
+        const int i = v * tstride_ + u;
         T[i] = static_cast<int16_t>(r1[xx] << kValueBits);
         st += r1[xx];
         stt += r1[xx] * r1[xx];
@@ -173,6 +175,12 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
         syy += gy * gy;
         sx += gx;
         sy += gy;
+      }
+      for (int u = side_; u < tstride_; ++u) {  // the vector kernels' zero padding
+        const int i = v * tstride_ + u;
+        T[i] = 0;
+        Sx[i] = 0;
+        Sy[i] = 0;
       }
     }
     // Gauss-Newton Hessian of the residual e = I(W(x; p)) - T(x) - b over [dx, dy, b], with the
@@ -186,7 +194,7 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
       const int r = residual_radius_;
       for (int v = half_ - r; v <= half_ + r; ++v) {
         for (int u = half_ - r; u <= half_ + r; ++u) {
-          const double value = T[v * side_ + u] >> kValueBits;
+          const double value = T[v * tstride_ + u] >> kValueBits;
           ct += value;
           ctt += value * value;
         }
@@ -217,7 +225,8 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
 void PyramidalLk::copyTemplate(int from, int to) {
   EPITRACK_ASSERT(from >= 0 && from < capacity_ && to >= 0 && to < capacity_);
   if (from == to) return;
-  const std::size_t n = static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(area_);
+  const std::size_t n =
+      static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(patch_size_);
   std::copy_n(value_.data() + patchIndex(from, 0), n, value_.data() + patchIndex(to, 0));
   std::copy_n(grad_x_.data() + patchIndex(from, 0), n, grad_x_.data() + patchIndex(to, 0));
   std::copy_n(grad_y_.data() + patchIndex(from, 0), n, grad_y_.data() + patchIndex(to, 0));
@@ -241,8 +250,6 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   const double eps = level > 0 ? 4.0 * options_.epsilon : options_.epsilon;
   const double eps2 = eps * eps;
   constexpr int kOne = 1 << kWeightBits;
-  constexpr int kShift = kWeightBits - kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
     const double fx_floor = std::floor(cx);
@@ -254,36 +261,20 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
       return LkStatus::kLeftImage;
     }
     ++iterations_;
-    const int ax = static_cast<int>(std::lround((cx - fx_floor) * kOne));
-    const int ay = static_cast<int>(std::lround((cy - fy_floor) * kOne));
-    const int32_t w00 = ((kOne - ax) * (kOne - ay) + (kOne >> 1)) >> kWeightBits;
-    const int32_t w01 = (ax * (kOne - ay) + (kOne >> 1)) >> kWeightBits;
-    const int32_t w10 = ((kOne - ax) * ay + (kOne >> 1)) >> kWeightBits;
-    const int32_t w11 = kOne - w00 - w01 - w10;  // the four sum exactly to 1 << kWeightBits
-    int64_t gx_e = 0, gy_e = 0, sum_e = 0, sum_sq = 0;
-    for (int v = 0; v < side_; ++v) {
-      const uint8_t* r0 = image.row(iy - half_ + v) + (ix - half_);
-      const uint8_t* r1 = r0 + image.stride;
-      const int16_t* t = T + v * side_;
-      const int16_t* sx = Sx + v * side_;
-      const int16_t* sy = Sy + v * side_;
-      // Per row in int32: |Sx| <= 4080, |e| <= 8160, 21 terms < 7e8 < 2^31.
-      int32_t row_gx = 0, row_gy = 0, row_e = 0;
-      int64_t row_sq = 0;
-      for (int u = 0; u < side_; ++u) {
-        const int32_t sample =
-            (w00 * r0[u] + w01 * r0[u + 1] + w10 * r1[u] + w11 * r1[u + 1] + kRound) >> kShift;
-        const int32_t e = sample - t[u];
-        row_gx += sx[u] * e;
-        row_gy += sy[u] * e;
-        row_e += e;
-        row_sq += e * e;
-      }
-      gx_e += row_gx;
-      gy_e += row_gy;
-      sum_e += row_e;
-      sum_sq += row_sq;
+    const auto ax = static_cast<int32_t>(std::lround((cx - fx_floor) * kOne));
+    const auto ay = static_cast<int32_t>(std::lround((cy - fy_floor) * kOne));
+    const LkBilinear w = lkBilinear(ax, ay);
+    const uint8_t* window = image.row(iy - half_) + (ix - half_);
+    LkWindowSums sums;
+    if (options_.vector_kernels) {
+      lkTranslationSumsVector(window, image.stride, side_, w, T, Sx, Sy, tstride_, sums);
+    } else {
+      lkTranslationSumsScalar(window, image.stride, side_, w, T, Sx, Sy, tstride_, sums);
     }
+    const int64_t gx_e = sums.gx_e;
+    const int64_t gy_e = sums.gy_e;
+    const int64_t sum_e = sums.sum_e;
+    const int64_t sum_sq = sums.sum_sq;
     const double g0 = static_cast<double>(gx_e);
     const double g1 = static_cast<double>(gy_e);
     const double g2 = static_cast<double>(sum_e) * (1 << kValueBits);
@@ -346,9 +337,9 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
       const double dv = v - h;
       auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
       auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-      const int16_t* t = T + v * side_;
-      const int16_t* sx = Sx + v * side_;
-      const int16_t* sy = Sy + v * side_;
+      const int16_t* t = T + v * tstride_;
+      const int16_t* sx = Sx + v * tstride_;
+      const int16_t* sy = Sy + v * tstride_;
       int32_t row_gx = 0, row_gy = 0, row_e = 0;
       int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
       for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
@@ -457,7 +448,7 @@ double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, dou
     const double dv = v - half_;
     auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
     auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-    const int16_t* t = T + v * side_;
+    const int16_t* t = T + v * tstride_;
     for (int u = half_ - r; u <= half_ + r; ++u, X += step_x, Y += step_y) {
       const int ix = X >> kPosBits;
       const int iy = Y >> kPosBits;

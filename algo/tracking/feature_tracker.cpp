@@ -313,7 +313,8 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   // The forward-backward check: every young track (it has no velocity for the gate yet), tracks
   // whose appearance drifted (before their template is refreshed), or every track if asked.
   const double stretch = shapeStretch(c.shape);
-  const bool drifted = res > refresh || stretch >= options_.refresh_stretch;
+  const bool stretched = options_.refresh_stretch > 0.0 && stretch >= options_.refresh_stretch;
+  const bool drifted = res > refresh || stretched;
   const bool check =
       options_.forward_backward_px > 0.0 && (young || options_.forward_backward || drifted);
   if (check && !forwardBackward(t.x, t.y, c.x, c.y, c.predicted_x, c.predicted_y)) {
@@ -335,8 +336,7 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   t.residual = c.residual;
   t.shape = c.shape;
   t.residual_level = young ? c.residual : 0.7f * t.residual_level + 0.3f * c.residual;
-  if (check && ((res > refresh && stretch >= options_.refresh_min_stretch) ||
-                stretch >= options_.refresh_stretch)) {
+  if (check && ((res > refresh && stretch >= options_.refresh_min_stretch) || stretched)) {
     // Appearance drifted (perspective, scale, light) but the patch still follows the point from
     // the last frame: the check's template (taken here, in this frame) becomes the track's,
     // keeping the track's residual level.

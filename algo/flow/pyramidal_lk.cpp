@@ -35,9 +35,13 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   half_ = options_.window / 2;
   side_ = options_.window;
   area_ = side_ * side_;
+  tstride_ = (side_ + 7) / 8 * 8;
+  patch_size_ = side_ * tstride_;
+  residual_radius_ = options_.residual_radius < 0 ? side_ / 4 : options_.residual_radius;
+  if (residual_radius_ == 0 || residual_radius_ > half_) residual_radius_ = half_;
   const std::size_t total = static_cast<std::size_t>(capacity_) *
                             static_cast<std::size_t>(level_count_) *
-                            static_cast<std::size_t>(area_);
+                            static_cast<std::size_t>(patch_size_);
   value_.reserve(std::max<std::size_t>(total, 1));
   grad_x_.reserve(std::max<std::size_t>(total, 1));
   grad_y_.reserve(std::max<std::size_t>(total, 1));
@@ -86,8 +90,8 @@ void PyramidalLk::setAffineHessian(int slot) {
   Eigen::Matrix<double, 7, 1> J;
   for (int v = 0; v < side_; ++v) {
     for (int u = 0; u < side_; ++u) {
-      const double gx = Sx[v * side_ + u];
-      const double gy = Sy[v * side_ + u];
+      const double gx = Sx[v * tstride_ + u];
+      const double gy = Sy[v * tstride_ + u];
       const double du = u - half_;
       const double dv = v - half_;
       J << gx, gy, du * gx, dv * gx, du * gy, dv * gy, static_cast<double>(1 << kValueBits);
@@ -160,7 +164,7 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
                        3 * (r2[xx + 1] - r2[xx - 1]);
         const int gy =
             3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
-        const int i = v * side_ + u;
+        const int i = v * tstride_ + u;
         T[i] = static_cast<int16_t>(r1[xx] << kValueBits);
         st += r1[xx];
         stt += r1[xx] * r1[xx];
@@ -172,6 +176,12 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
         sx += gx;
         sy += gy;
       }
+      for (int u = side_; u < tstride_; ++u) {  // the vector kernels' zero padding
+        const int i = v * tstride_ + u;
+        T[i] = 0;
+        Sx[i] = 0;
+        Sy[i] = 0;
+      }
     }
     // Gauss-Newton Hessian of the residual e = I(W(x; p)) - T(x) - b over [dx, dy, b], with the
     // Jacobian row [Sx, Sy, 32] in the units of e (1/32 gray levels); Baker & Matthews 2004 eq. 36.
@@ -179,6 +189,19 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     // Contrast of the template (its intensity standard deviation): residuals are reported
     // relative to it, so one threshold serves faint and strong corners (gain normalisation).
     lt.contrast = std::sqrt(std::max(stt / n - (st / n) * (st / n), 1.0));
+    if (l == 0) {
+      double ct = 0.0, ctt = 0.0;
+      const int r = residual_radius_;
+      for (int v = half_ - r; v <= half_ + r; ++v) {
+        for (int u = half_ - r; u <= half_ + r; ++u) {
+          const double value = T[v * tstride_ + u] >> kValueBits;
+          ct += value;
+          ctt += value * value;
+        }
+      }
+      const double m = static_cast<double>((2 * r + 1) * (2 * r + 1));
+      lt.centre_contrast = std::sqrt(std::max(ctt / m - (ct / m) * (ct / m), 1.0));
+    }
     const double one = static_cast<double>(1 << kValueBits);
     const double H[3][3] = {
         {sxx, sxy, one * sx}, {sxy, syy, one * sy}, {one * sx, one * sy, one * one * n}};
@@ -202,7 +225,8 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
 void PyramidalLk::copyTemplate(int from, int to) {
   EPITRACK_ASSERT(from >= 0 && from < capacity_ && to >= 0 && to < capacity_);
   if (from == to) return;
-  const std::size_t n = static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(area_);
+  const std::size_t n =
+      static_cast<std::size_t>(level_count_) * static_cast<std::size_t>(patch_size_);
   std::copy_n(value_.data() + patchIndex(from, 0), n, value_.data() + patchIndex(to, 0));
   std::copy_n(grad_x_.data() + patchIndex(from, 0), n, grad_x_.data() + patchIndex(to, 0));
   std::copy_n(grad_y_.data() + patchIndex(from, 0), n, grad_y_.data() + patchIndex(to, 0));
@@ -226,8 +250,6 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
   const double eps = level > 0 ? 4.0 * options_.epsilon : options_.epsilon;
   const double eps2 = eps * eps;
   constexpr int kOne = 1 << kWeightBits;
-  constexpr int kShift = kWeightBits - kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
     const double fx_floor = std::floor(cx);
@@ -239,36 +261,20 @@ LkStatus PyramidalLk::alignLevel(int slot, int level, ImageView<const uint8_t> i
       return LkStatus::kLeftImage;
     }
     ++iterations_;
-    const int ax = static_cast<int>(std::lround((cx - fx_floor) * kOne));
-    const int ay = static_cast<int>(std::lround((cy - fy_floor) * kOne));
-    const int32_t w00 = ((kOne - ax) * (kOne - ay) + (kOne >> 1)) >> kWeightBits;
-    const int32_t w01 = (ax * (kOne - ay) + (kOne >> 1)) >> kWeightBits;
-    const int32_t w10 = ((kOne - ax) * ay + (kOne >> 1)) >> kWeightBits;
-    const int32_t w11 = kOne - w00 - w01 - w10;  // the four sum exactly to 1 << kWeightBits
-    int64_t gx_e = 0, gy_e = 0, sum_e = 0, sum_sq = 0;
-    for (int v = 0; v < side_; ++v) {
-      const uint8_t* r0 = image.row(iy - half_ + v) + (ix - half_);
-      const uint8_t* r1 = r0 + image.stride;
-      const int16_t* t = T + v * side_;
-      const int16_t* sx = Sx + v * side_;
-      const int16_t* sy = Sy + v * side_;
-      // Per row in int32: |Sx| <= 4080, |e| <= 8160, 21 terms < 7e8 < 2^31.
-      int32_t row_gx = 0, row_gy = 0, row_e = 0;
-      int64_t row_sq = 0;
-      for (int u = 0; u < side_; ++u) {
-        const int32_t sample =
-            (w00 * r0[u] + w01 * r0[u + 1] + w10 * r1[u] + w11 * r1[u + 1] + kRound) >> kShift;
-        const int32_t e = sample - t[u];
-        row_gx += sx[u] * e;
-        row_gy += sy[u] * e;
-        row_e += e;
-        row_sq += e * e;
-      }
-      gx_e += row_gx;
-      gy_e += row_gy;
-      sum_e += row_e;
-      sum_sq += row_sq;
+    const auto ax = static_cast<int32_t>(std::lround((cx - fx_floor) * kOne));
+    const auto ay = static_cast<int32_t>(std::lround((cy - fy_floor) * kOne));
+    const LkBilinear w = lkBilinear(ax, ay);
+    const uint8_t* window = image.row(iy - half_) + (ix - half_);
+    LkWindowSums sums;
+    if (options_.vector_kernels) {
+      lkTranslationSumsVector(window, image.stride, side_, w, T, Sx, Sy, tstride_, sums);
+    } else {
+      lkTranslationSumsScalar(window, image.stride, side_, w, T, Sx, Sy, tstride_, sums);
     }
+    const int64_t gx_e = sums.gx_e;
+    const int64_t gy_e = sums.gy_e;
+    const int64_t sum_e = sums.sum_e;
+    const int64_t sum_sq = sums.sum_sq;
     const double g0 = static_cast<double>(gx_e);
     const double g1 = static_cast<double>(gy_e);
     const double g2 = static_cast<double>(sum_e) * (1 << kValueBits);
@@ -331,9 +337,9 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
       const double dv = v - h;
       auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
       auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-      const int16_t* t = T + v * side_;
-      const int16_t* sx = Sx + v * side_;
-      const int16_t* sy = Sy + v * side_;
+      const int16_t* t = T + v * tstride_;
+      const int16_t* sx = Sx + v * tstride_;
+      const int16_t* sy = Sy + v * tstride_;
       int32_t row_gx = 0, row_gy = 0, row_e = 0;
       int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
       for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
@@ -418,13 +424,61 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
   return last_step2 < 0.01 ? LkStatus::kTracked : LkStatus::kNoConvergence;
 }
 
+double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, double cx, double cy,
+                                   const double (&A)[4]) const {
+  const int r = residual_radius_;
+  const double h = r;
+  for (const double su : {-h, h}) {
+    for (const double sv : {-h, h}) {
+      const double wx = cx + A[0] * su + A[1] * sv;
+      const double wy = cy + A[2] * su + A[3] * sv;
+      if (!(wx >= 0.0 && wy >= 0.0 && wx < image.width - 1 && wy < image.height - 1)) return -1.0;
+    }
+  }
+  const int16_t* T = value_.data() + patchIndex(slot, 0);
+  constexpr int kPosBits = 16;
+  constexpr int kOne = 1 << kWeightBits;
+  constexpr int kShift = kWeightBits - kValueBits;
+  constexpr int kRound = 1 << (kShift - 1);
+  constexpr double kPosOne = static_cast<double>(1 << kPosBits);
+  const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
+  const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
+  int64_t s_e = 0, s_sq = 0;
+  for (int v = half_ - r; v <= half_ + r; ++v) {
+    const double dv = v - half_;
+    auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
+    auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
+    const int16_t* t = T + v * tstride_;
+    for (int u = half_ - r; u <= half_ + r; ++u, X += step_x, Y += step_y) {
+      const int ix = X >> kPosBits;
+      const int iy = Y >> kPosBits;
+      const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
+      const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
+      const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
+      const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
+      const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> kWeightBits;
+      const int32_t w11 = kOne - w00 - w01 - w10;
+      const uint8_t* r0 = image.row(iy) + ix;
+      const uint8_t* r1 = r0 + image.stride;
+      const int32_t sample =
+          (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
+      const int32_t e = sample - t[u];
+      s_e += e;
+      s_sq += e * e;
+    }
+  }
+  const double rms = rmsAfterBias(s_e, s_sq, (2 * r + 1) * (2 * r + 1));
+  return rms / levels_[static_cast<std::size_t>(slot * level_count_)].centre_contrast;
+}
+
 LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y, PatchShape& shape,
                             float& residual, int start_level) const {
   EPITRACK_ASSERT(slot >= 0 && slot < capacity_);
   const int levels = std::min(level_count_, pyramid.levelCount());
   double px = x;
   double py = y;
-  double res = 0.0;
+  double res = 0.0;       // RMS error after the bias of the last level's window (gray levels)
+  double relative = 0.0;  // the base level's residual, relative (see residual_radius)
   double A[4] = {shape.a00, shape.a01, shape.a10, shape.a11};
   double bias = 0.0;  // intensity offset, carried from coarse to fine
   for (int l = std::min(levels - 1, std::max(start_level, 0)); l >= 0; --l) {
@@ -460,6 +514,11 @@ LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y
       if (l == 0) return s;
       continue;  // a coarse level that fails leaves the guess to the finer levels
     }
+    if (l == 0) {
+      relative = residual_radius_ < half_ ? centreResidual(slot, pyramid.level(0), cx, cy, A)
+                                          : res / lt.contrast;
+      if (relative < 0.0) return LkStatus::kLeftImage;
+    }
     const double nox = A[0] * lt.offset_x + A[1] * lt.offset_y;
     const double noy = A[2] * lt.offset_x + A[3] * lt.offset_y;
     px = (cx + nox) * scale;
@@ -469,9 +528,8 @@ LkStatus PyramidalLk::align(int slot, const Pyramid& pyramid, float& x, float& y
   y = static_cast<float>(py);
   shape = PatchShape{static_cast<float>(A[0]), static_cast<float>(A[1]), static_cast<float>(A[2]),
                      static_cast<float>(A[3])};
-  residual =
-      static_cast<float>(res / levels_[static_cast<std::size_t>(slot * level_count_)].contrast);
-  return res > options_.max_residual ? LkStatus::kResidualTooHigh : LkStatus::kTracked;
+  residual = static_cast<float>(relative);
+  return relative > options_.max_residual ? LkStatus::kResidualTooHigh : LkStatus::kTracked;
 }
 
 }  // namespace epitrack

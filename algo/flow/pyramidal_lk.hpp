@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "algo/core/aligned_buffer.hpp"
+#include "algo/flow/lk_kernels.hpp"
 #include "algo/image/image_view.hpp"
 #include "algo/image/pyramid.hpp"
 
@@ -31,13 +32,20 @@ struct PatchShape {
 };
 
 struct LkOptions {
-  int window = 21;            ///< odd window side in pixels (Bouguet 2000: 2w+1)
-  int levels = 3;             ///< pyramid levels beyond the base
-  int max_iterations = 10;    ///< per level
-  double epsilon = 0.01;      ///< stop when the update is smaller than this (pixels of the level)
-  double min_eigen = 4.0;     ///< minimum eigenvalue of the mean gradient matrix, (gray/px)^2
-  double max_residual = 1e9;  ///< kResidualTooHigh beyond this relative residual (see align)
-  bool affine = true;         ///< base level: affine warp + bias instead of translation + bias
+  int window = 21;             ///< odd window side in pixels (Bouguet 2000: 2w+1)
+  int levels = 3;              ///< pyramid levels beyond the base
+  int max_iterations = 10;     ///< per level
+  double epsilon = 0.01;       ///< stop when the update is smaller than this (pixels of the level)
+  double min_eigen = 4.0;      ///< minimum eigenvalue of the mean gradient matrix, (gray/px)^2
+  double max_residual = 1e9;   ///< kResidualTooHigh beyond this relative residual (see align)
+  bool affine = true;          ///< base level: affine warp + bias instead of translation + bias
+  bool vector_kernels = true;  ///< SIMD inner loops where available (same results as scalar)
+  /// The residual is measured over the central (2 r + 1)^2 pixels of the window, r this radius
+  /// (-1: a quarter of the window side, 5 for 21x21; 0 or >= half the window: all of it). The
+  /// point is visible when its neighbourhood matches: structure entering the window's rim (an
+  /// occluder approaching, the background beside a box edge, perspective beyond the affine
+  /// warp) must not kill a track whose centre still follows its template.
+  int residual_radius = -1;
 };
 
 /// Pyramidal Lucas-Kanade tracking of translation plus an intensity offset (bias), after
@@ -53,12 +61,13 @@ struct LkOptions {
 ///
 /// Fixed point: bilinear weights in kWeightBits = 14 bits, the last weight the remainder so the
 /// four sum exactly to 1 << 14; samples and template values carry kValueBits = 5 fractional bits;
-/// products accumulate in int32 per row and int64 per window. Capacity (feature slots) is fixed
-/// at construction; no call allocates afterwards.
+/// products accumulate in int32 per row and int64 per window (algo/flow/lk_kernels.hpp; the
+/// translation iterations use its vector kernel, bit-identical to the scalar one). Capacity
+/// (feature slots) is fixed at construction; no call allocates afterwards.
 class PyramidalLk {
  public:
-  static constexpr int kWeightBits = 14;
-  static constexpr int kValueBits = 5;
+  static constexpr int kWeightBits = kLkWeightBits;
+  static constexpr int kValueBits = kLkValueBits;
   static constexpr int kMaxLevels = Pyramid::kMaxLevels;
 
   PyramidalLk(const LkOptions& options, int capacity);
@@ -72,8 +81,9 @@ class PyramidalLk {
 
   /// Aligns slot `slot`'s template in `pyramid` starting from the guess (x, y) (base level),
   /// coarse to fine. On kTracked or kResidualTooHigh, (x, y) is the aligned position and
-  /// `residual` the RMS error at the base level after removing the intensity offset, divided by
-  /// the template's intensity standard deviation (0: identical; about 1.4: unrelated patches).
+  /// `residual` the RMS error at the base level after removing the intensity offset over the
+  /// central residual window (LkOptions::residual_radius), divided by the template's intensity
+  /// standard deviation there (0: identical; about 1.4: unrelated patches).
   LkStatus align(int slot, const Pyramid& pyramid, float& x, float& y, float& residual) const {
     PatchShape shape;
     return align(slot, pyramid, x, y, shape, residual);
@@ -97,15 +107,20 @@ class PyramidalLk {
     double offset_x = 0.0;  ///< feature position minus the template's integer centre (level px)
     double offset_y = 0.0;
     bool valid = false;
-    double contrast = 1.0;  ///< standard deviation of the template intensities (gray levels)
+    double contrast = 1.0;         ///< standard deviation of the template intensities (gray levels)
+    double centre_contrast = 1.0;  ///< ... over the residual's central window (base level)
     std::array<double, 9> H_inv{};  ///< inverse of the 3x3 Gauss-Newton Hessian (x, y, bias)
   };
   [[nodiscard]] std::size_t patchIndex(int slot, int level) const {
     return (static_cast<std::size_t>(slot) * static_cast<std::size_t>(level_count_) +
             static_cast<std::size_t>(level)) *
-           static_cast<std::size_t>(area_);
+           static_cast<std::size_t>(patch_size_);
   }
   void setAffineHessian(int slot);
+  /// Relative residual (see align) over the central residual window of slot `slot`'s base
+  /// template placed at centre (cx, cy) with shape A in `image`; negative when outside.
+  double centreResidual(int slot, ImageView<const uint8_t> image, double cx, double cy,
+                        const double (&A)[4]) const;
   /// Affine inverse-compositional iterations on the base level: (cx, cy) the template centre in
   /// the image and A its shape, updated in place.
   LkStatus alignAffine(int slot, ImageView<const uint8_t> image, double& cx, double& cy,
@@ -120,6 +135,9 @@ class PyramidalLk {
   int half_ = 0;
   int side_ = 0;
   int area_ = 0;
+  int tstride_ = 0;     // template row stride: side_ rounded up to 8 (zero padding, for vectors)
+  int patch_size_ = 0;  // side_ * tstride_
+  int residual_radius_ = 0;
   AlignedBuffer<int16_t> value_;   // template values << kValueBits
   AlignedBuffer<int16_t> grad_x_;  // Scharr (unnormalised, 32 x intensity per pixel)
   AlignedBuffer<int16_t> grad_y_;

@@ -26,6 +26,7 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   l.epsilon = o.epsilon;
   l.min_eigen = o.min_eigen;
   l.affine = o.affine;
+  l.residual_radius = o.residual_radius;
   return l;
 }
 
@@ -38,6 +39,26 @@ double msSince(StageClock t0) {
 }
 
 }  // namespace
+
+const char* trackLossName(TrackLoss loss) {
+  switch (loss) {
+    case TrackLoss::kLeftImage:
+      return "left-image";
+    case TrackLoss::kLowTexture:
+      return "low-texture";
+    case TrackLoss::kNoConvergence:
+      return "no-convergence";
+    case TrackLoss::kResidual:
+      return "residual";
+    case TrackLoss::kForwardBackward:
+      return "forward-backward";
+    case TrackLoss::kGate:
+      return "gate";
+    case TrackLoss::kMask:
+      return "mask";
+  }
+  return "unknown";
+}
 
 FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, int height)
     : options_(options),
@@ -59,6 +80,7 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
   live_points_.resize(n);
   corners_.resize(n);
   output_.resize(n);
+  lost_.resize(n);
 }
 
 void FeatureTracker::detect(ImageView<const uint8_t> mask) {
@@ -95,6 +117,19 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
 }
 
 namespace {
+
+/// How far the affine shape A stretches its template: max(s1, 1 / s2) of A's singular values
+/// s1 >= s2 (1 for a rotation).
+double shapeStretch(const PatchShape& A) {
+  const double a = A.a00, b = A.a01, c = A.a10, d = A.a11;
+  // Singular values of [a b; c d]: sqrt of the eigenvalues of A^T A.
+  const double p = a * a + b * b + c * c + d * d;
+  const double det = std::abs(a * d - b * c);
+  const double disc = std::sqrt(std::max(p * p - 4.0 * det * det, 0.0));
+  const double s1 = std::sqrt(0.5 * (p + disc));
+  const double s2 = det / std::max(s1, 1e-12);
+  return std::max(s1, 1.0 / std::max(s2, 1e-12));
+}
 
 /// Median of values[0, n) (partially reorders them). n > 0.
 float medianOf(float* values, int n) {
@@ -224,6 +259,9 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
   }
   c.predicted_x = px;
   c.predicted_y = py;
+  if (measurement_hook_ != nullptr && c.status == LkStatus::kTracked) {
+    measurement_hook_(measurement_hook_context_, t.id, frame_index_, c.x, c.y);
+  }
   if (!young && c.status == LkStatus::kTracked) {
     const auto k = static_cast<std::size_t>(moved_count_++);
     moved_x_[k] = x0;
@@ -237,19 +275,22 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
                                ImageView<const uint8_t> mask) {
   Track& t = tracks_[s];
   const Candidate& c = t.candidate;
-  auto drop = [&](int& counter) {
+  auto drop = [&](int& counter, TrackLoss reason) {
     ++counter;
     t.live = false;
     --live_count_;
+    lost_[static_cast<std::size_t>(lost_count_++)] = LostTrack{t.id, t.x, t.y, t.age, reason};
   };
   if (c.status != LkStatus::kTracked) {
     ++stats_.lost_lk;
-    stats_.lost_left_image += c.status == LkStatus::kLeftImage ? 1 : 0;
-    stats_.lost_no_convergence += c.status == LkStatus::kNoConvergence ? 1 : 0;
-    stats_.lost_low_texture += c.status == LkStatus::kLowTexture ? 1 : 0;
-    t.live = false;
-    --live_count_;
-    return;
+    switch (c.status) {
+      case LkStatus::kLeftImage:
+        return drop(stats_.lost_left_image, TrackLoss::kLeftImage);
+      case LkStatus::kLowTexture:
+        return drop(stats_.lost_low_texture, TrackLoss::kLowTexture);
+      default:
+        return drop(stats_.lost_no_convergence, TrackLoss::kNoConvergence);
+    }
   }
   // Thresholds scale with the frame's typical residual (noise, blur, compression of real
   // footage raise every track's residual alike; a clean rendering keeps the fixed ones).
@@ -267,23 +308,26 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
       std::max(options_.max_residual_jump, options_.residual_scale_young * residual_scale);
   if (res > max_res || (young && res > young_max) ||
       (!young && res > static_cast<double>(t.residual_level) + jump)) {
-    return drop(stats_.lost_residual);
+    return drop(stats_.lost_residual, TrackLoss::kResidual);
   }
   // The forward-backward check: every young track (it has no velocity for the gate yet), tracks
   // whose appearance drifted (before their template is refreshed), or every track if asked.
+  const double stretch = shapeStretch(c.shape);
+  const bool stretched = options_.refresh_stretch > 0.0 && stretch >= options_.refresh_stretch;
+  const bool drifted = res > refresh || stretched;
   const bool check =
-      options_.forward_backward_px > 0.0 && (young || options_.forward_backward || res > refresh);
+      options_.forward_backward_px > 0.0 && (young || options_.forward_backward || drifted);
   if (check && !forwardBackward(t.x, t.y, c.x, c.y, c.predicted_x, c.predicted_y)) {
-    return drop(stats_.lost_forward_backward);
+    return drop(stats_.lost_forward_backward, TrackLoss::kForwardBackward);
   }
   if (!mask.empty()) {
     const int mx = std::clamp(static_cast<int>(std::lround(c.x)), 0, width_ - 1);
     const int my = std::clamp(static_cast<int>(std::lround(c.y)), 0, height_ - 1);
-    if (mask(mx, my) == 0) return drop(stats_.lost_mask);
+    if (mask(mx, my) == 0) return drop(stats_.lost_mask, TrackLoss::kMask);
   }
   if (options_.kalman_gate) {
     // A track seen once has no velocity: its first displacement is judged by the check above.
-    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate);
+    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate, TrackLoss::kGate);
     t.kalman.correct(c.x, c.y);
   }
   t.x = c.x;
@@ -292,7 +336,7 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   t.residual = c.residual;
   t.shape = c.shape;
   t.residual_level = young ? c.residual : 0.7f * t.residual_level + 0.3f * c.residual;
-  if (check && res > refresh) {
+  if (check && ((res > refresh && stretch >= options_.refresh_min_stretch) || stretched)) {
     // Appearance drifted (perspective, scale, light) but the patch still follows the point from
     // the last frame: the check's template (taken here, in this frame) becomes the track's,
     // keeping the track's residual level.
@@ -309,6 +353,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   if (frame.width != width_ || frame.height != height_) return Status::kSizeMismatch;
   if (!mask.empty() && !sameSize(mask, frame)) return Status::kSizeMismatch;
   stats_ = FrameStats{};
+  lost_count_ = 0;
   current_ = 1 - current_;
   auto t0 = stageNow();
   pyramids_[current_].build(frame);

@@ -42,7 +42,11 @@ struct FeatureTrackerOptions {
   double neighbour_radius = 0.15;
   double epsilon = 0.01;   ///< LK convergence, px
   double min_eigen = 4.0;  ///< LK texture threshold, (gray/px)^2 per pixel
-  // Residuals are relative: RMS error after the intensity offset / template contrast (see
+  /// LK residual over the central (2r+1)^2 window (see LkOptions; -1: a quarter of the window;
+  /// 0: the whole window, the default, see below).
+  int residual_radius = 0;
+  // Residuals are relative: RMS error after the intensity offset / template contrast, over the
+  // central 11x11 of the window (see
   // PyramidalLk::align). With the affine template the residual stays small while the point is
   // visible; occlusion or sliding onto other structure raises it, and so do noise, blur and
   // compression on real footage, for every track alike. So each threshold is the larger of a
@@ -55,11 +59,36 @@ struct FeatureTrackerOptions {
   double residual_scale_max = 3.0;    ///< ... or this many frame medians
   double residual_scale_jump = 1.5;   ///< ... or this many frame medians
   double residual_scale_young = 3.0;  ///< a young track's first residual: this many medians
-  /// Beyond this residual (or residual_scale_refresh frame medians) a track must pass the
-  /// forward-backward check, then takes a new template at its position (appearance drifted:
-  /// perspective, scale, light); each refresh costs one re-sampling error.
+  /// Template refresh (the template update problem, Matthews, Ishikawa & Baker 2004): a track
+  /// whose template no longer looks like its patch must pass the forward-backward check, then
+  /// takes a new template at its position; each refresh costs one re-sampling error. A track
+  /// qualifies when its residual exceeds refresh_residual (or residual_scale_refresh frame
+  /// medians) while its affine shape stretches the template by at least refresh_min_stretch
+  /// (singular values beyond [1/s, s]; appearance changed by the warp: foreshortening, scale,
+  /// the resampling blur), or whatever its residual once the stretch reaches refresh_stretch
+  /// (before the alignment of a strongly warped template turns biased). A residual that grows
+  /// while the shape stays close to a rotation is occlusion or another surface sliding in: such
+  /// tracks are not refreshed (they die at max_residual), so they cannot follow an occluding
+  /// edge. (0: no condition on the stretch / no refresh by stretch alone.)
+  ///
+  /// The defaults keep the earlier behaviour (whole-window residual, refresh beyond 0.5 whatever
+  /// the shape). `occlusionAware()` sets residual_radius -1, refresh_residual 0.4,
+  /// refresh_min_stretch 1.3, refresh_stretch 1.4: on the rendered orbit 94 % of the visible
+  /// first-frame corners survive 100 frames instead of 79 %, with the accuracy targets kept, but
+  /// the device and offline solves of the hand-held clip get worse (tests/device), so it is not
+  /// the default yet (see notes/README-tracker.md).
   double refresh_residual = 0.5;
   double residual_scale_refresh = 1.5;
+  double refresh_min_stretch = 0.0;
+  double refresh_stretch = 0.0;
+  /// The occlusion-aware residual and refresh settings described above.
+  FeatureTrackerOptions& occlusionAware() {
+    residual_radius = -1;
+    refresh_residual = 0.4;
+    refresh_min_stretch = 1.3;
+    refresh_stretch = 1.4;
+    return *this;
+  }
   /// The forward-backward check (young and drifted tracks): the track's patch in this frame,
   /// aligned back into the previous frame from the mirrored prediction, must land within this
   /// of where the track came from (0: no check, no refresh).
@@ -67,6 +96,31 @@ struct FeatureTrackerOptions {
   bool forward_backward = false;  ///< check every track, not only young and drifted ones
   KalmanCvOptions kalman{};
 };
+
+/// Why a track was dropped (see FeatureTracker::lost).
+enum class TrackLoss : uint8_t {
+  kLeftImage,        ///< the LK window left the image
+  kLowTexture,       ///< the template has too little texture
+  kNoConvergence,    ///< the LK update did not settle
+  kResidual,         ///< residual too high, or a jump above the track's level (occlusion)
+  kForwardBackward,  ///< the forward-backward check failed
+  kGate,             ///< outside the Kalman gate (the paper §4.2)
+  kMask,             ///< moved into a masked region
+};
+const char* trackLossName(TrackLoss loss);
+
+/// A track dropped in the last frame, with its last accepted position.
+struct LostTrack {
+  int32_t id = 0;
+  float x = 0.0f;
+  float y = 0.0f;
+  int32_t age = 0;
+  TrackLoss reason = TrackLoss::kGate;
+};
+
+/// Fault injection (tests of the outlier gate): called with every track's LK measurement of the
+/// frame before it is judged; it may move (x, y). `frame` counts track() calls from 0.
+using MeasurementHook = void (*)(void* context, int32_t track_id, int frame, float& x, float& y);
 
 /// Per-frame figures of the last `track` call (for benchmarks and logs). Times are processor
 /// milliseconds of the process (std::clock), so a busy machine does not inflate them.
@@ -113,7 +167,16 @@ class FeatureTracker {
   [[nodiscard]] std::span<const TrackedFeature> features() const {
     return {output_.data(), static_cast<std::size_t>(output_count_)};
   }
+  /// Tracks dropped by the last `track` call, with the reason (valid until the next call).
+  [[nodiscard]] std::span<const LostTrack> lost() const {
+    return {lost_.data(), static_cast<std::size_t>(lost_count_)};
+  }
   [[nodiscard]] const FrameStats& lastStats() const { return stats_; }
+  /// Installs (or with nullptr removes) a measurement hook; see MeasurementHook.
+  void setMeasurementHook(MeasurementHook hook, void* context) {
+    measurement_hook_ = hook;
+    measurement_hook_context_ = context;
+  }
   [[nodiscard]] const FeatureTrackerOptions& options() const { return options_; }
   [[nodiscard]] int frameCount() const { return frame_index_; }
   [[nodiscard]] const Pyramid& pyramid() const { return pyramids_[current_]; }
@@ -166,6 +229,10 @@ class FeatureTracker {
   std::vector<Point2f> live_points_;  // scratch for the detector
   std::vector<Corner> corners_;       // scratch for the detector
   std::vector<TrackedFeature> output_;
+  std::vector<LostTrack> lost_;  // max_features slots
+  int lost_count_ = 0;
+  MeasurementHook measurement_hook_ = nullptr;
+  void* measurement_hook_context_ = nullptr;
   // Displacements of the tracks tracked so far this frame (for neighbour priors), and scratch.
   std::vector<float> moved_x_, moved_y_, moved_dx_, moved_dy_, scratch_dx_, scratch_dy_;
   int moved_count_ = 0;

@@ -227,7 +227,9 @@ int runFrontend(int argc, const char* const* argv) {
         std::size_t k = 0;
         for (std::size_t i = 0; i < pts.size(); ++i) {
           const cv::Point2f& p = next_pts[i];
-          if (status[i] == 0 || p.x < 0 || p.y < 0 || p.x > w - 1 || p.y > h - 1) continue;
+          if (status[i] == 0 || p.x < 0 || p.y < 0 || p.x > static_cast<float>(w - 1) ||
+              p.y > static_cast<float>(h - 1))
+            continue;
           next_pts[k] = p;
           ids[k] = ids[i];
           ++k;

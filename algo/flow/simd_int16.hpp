@@ -1,0 +1,116 @@
+#pragma once
+
+// The few 128-bit integer operations the Lucas-Kanade kernels need, on SSE2 (every x86-64) and
+// NEON (every aarch64), so that a kernel is written once (algo/flow/lk_kernels.cpp). Every
+// operation is exact integer arithmetic with a defined result per lane, so a vector kernel gives
+// the same sums as the scalar reference, bit for bit, on both instruction sets.
+// EPITRACK_LK_SIMD is 1 when one of them is available, else 0 (the scalar kernels only).
+
+#include <cstdint>
+#include <cstring>
+
+#if defined(__SSE2__) || defined(_M_X64)
+#include <emmintrin.h>
+#define EPITRACK_LK_SIMD 1
+#define EPITRACK_LK_SIMD_NAME "sse2"
+#elif defined(__ARM_NEON) && defined(__aarch64__)
+#include <arm_neon.h>
+#define EPITRACK_LK_SIMD 1
+#define EPITRACK_LK_SIMD_NAME "neon"
+#else
+#define EPITRACK_LK_SIMD 0
+#define EPITRACK_LK_SIMD_NAME "scalar"
+#endif
+
+#if EPITRACK_LK_SIMD
+namespace epitrack::simd {
+
+#if defined(__SSE2__) || defined(_M_X64)
+using I16x8 = __m128i;  ///< 8 x int16
+using I32x4 = __m128i;  ///< 4 x int32
+
+/// 8 bytes widened to 8 x int16 (unaligned; memcpy, no pointer cast).
+inline I16x8 loadWidenU8(const uint8_t* p) {
+  int64_t bits = 0;
+  std::memcpy(&bits, p, 8);
+  return _mm_unpacklo_epi8(_mm_cvtsi64_si128(bits), _mm_setzero_si128());
+}
+/// `n` (< 8) bytes widened to int16, the other lanes 0.
+inline I16x8 loadWidenU8Partial(const uint8_t* p, int n) {
+  int64_t bits = 0;
+  std::memcpy(&bits, p, static_cast<std::size_t>(n));
+  return _mm_unpacklo_epi8(_mm_cvtsi64_si128(bits), _mm_setzero_si128());
+}
+inline I16x8 loadI16(const int16_t* p) {
+  I16x8 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+/// (a0, b0, a1, b1, a2, b2, a3, b3) and (a4, b4, ..., a7, b7).
+inline I16x8 zipLo16(I16x8 a, I16x8 b) { return _mm_unpacklo_epi16(a, b); }
+inline I16x8 zipHi16(I16x8 a, I16x8 b) { return _mm_unpackhi_epi16(a, b); }
+/// (a, b) repeated.
+inline I16x8 pair16(int16_t a, int16_t b) {
+  return _mm_set1_epi32(static_cast<int32_t>(
+      (static_cast<uint32_t>(static_cast<uint16_t>(b)) << 16) | static_cast<uint16_t>(a)));
+}
+inline I16x8 set16(int16_t a) { return _mm_set1_epi16(a); }
+inline I16x8 sub16(I16x8 a, I16x8 b) { return _mm_sub_epi16(a, b); }
+/// Lane i of the result: a[2i] * b[2i] + a[2i+1] * b[2i+1] in int32 (pmaddwd).
+inline I32x4 madd(I16x8 a, I16x8 b) { return _mm_madd_epi16(a, b); }
+inline I32x4 zero32() { return _mm_setzero_si128(); }
+inline I32x4 set32(int32_t a) { return _mm_set1_epi32(a); }
+inline I32x4 add32(I32x4 a, I32x4 b) { return _mm_add_epi32(a, b); }
+template <int kShift>
+inline I32x4 sra32(I32x4 a) {
+  return _mm_srai_epi32(a, kShift);
+}
+/// Saturating narrowing of 8 x int32 to 8 x int16 (exact when they fit).
+inline I16x8 pack32(I32x4 lo, I32x4 hi) { return _mm_packs_epi32(lo, hi); }
+/// The sum of the 4 lanes, exact in int64.
+inline int64_t sum32(I32x4 a) {
+  int32_t lanes[4];
+  std::memcpy(lanes, &a, sizeof(lanes));
+  return static_cast<int64_t>(lanes[0]) + lanes[1] + lanes[2] + lanes[3];
+}
+
+#else  // NEON (aarch64)
+using I16x8 = int16x8_t;
+using I32x4 = int32x4_t;
+
+inline I16x8 loadWidenU8(const uint8_t* p) {
+  uint8_t bytes[8];
+  std::memcpy(bytes, p, 8);
+  return vreinterpretq_s16_u16(vmovl_u8(vld1_u8(bytes)));
+}
+inline I16x8 loadWidenU8Partial(const uint8_t* p, int n) {
+  uint8_t bytes[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  std::memcpy(bytes, p, static_cast<std::size_t>(n));
+  return vreinterpretq_s16_u16(vmovl_u8(vld1_u8(bytes)));
+}
+inline I16x8 loadI16(const int16_t* p) { return vld1q_s16(p); }
+inline I16x8 zipLo16(I16x8 a, I16x8 b) { return vzip1q_s16(a, b); }
+inline I16x8 zipHi16(I16x8 a, I16x8 b) { return vzip2q_s16(a, b); }
+inline I16x8 pair16(int16_t a, int16_t b) {
+  const int16_t v[8] = {a, b, a, b, a, b, a, b};
+  return vld1q_s16(v);
+}
+inline I16x8 set16(int16_t a) { return vdupq_n_s16(a); }
+inline I16x8 sub16(I16x8 a, I16x8 b) { return vsubq_s16(a, b); }
+/// As SSE2's pmaddwd: widening products, then adjacent pairs added.
+inline I32x4 madd(I16x8 a, I16x8 b) {
+  return vpaddq_s32(vmull_s16(vget_low_s16(a), vget_low_s16(b)), vmull_high_s16(a, b));
+}
+inline I32x4 zero32() { return vdupq_n_s32(0); }
+inline I32x4 set32(int32_t a) { return vdupq_n_s32(a); }
+inline I32x4 add32(I32x4 a, I32x4 b) { return vaddq_s32(a, b); }
+template <int kShift>
+inline I32x4 sra32(I32x4 a) {
+  return vshrq_n_s32(a, kShift);
+}
+inline I16x8 pack32(I32x4 lo, I32x4 hi) { return vcombine_s16(vqmovn_s32(lo), vqmovn_s32(hi)); }
+inline int64_t sum32(I32x4 a) { return vaddlvq_s32(a); }
+#endif
+
+}  // namespace epitrack::simd
+#endif

@@ -151,23 +151,34 @@ struct PnpScene {
 };
 
 PnpScene makePnpScene(uint64_t seed, int n, double noise_px, double outliers) {
+  // One draw per statement, last coordinate first (tests/support/seeded_random.hpp).
   SplitMix64 rng(seed * 31 + 7);
   PnpScene s;
-  s.pose.R_cw = expSo3(Eigen::Vector3d(0.3 * rng.uniform() - 0.15, 0.6 * rng.uniform() - 0.3, 0.2));
-  s.pose.t_cw = Eigen::Vector3d(0.5 * rng.uniform(), -0.3, 0.2 * rng.uniform());
+  const double wy = 0.6 * rng.uniform() - 0.3;
+  const double wx = 0.3 * rng.uniform() - 0.15;
+  s.pose.R_cw = test::rotationScalar(Eigen::Vector3d(wx, wy, 0.2));
+  const double tz = 0.2 * rng.uniform();
+  const double tx = 0.5 * rng.uniform();
+  s.pose.t_cw = Eigen::Vector3d(tx, -0.3, tz);
   while (static_cast<int>(s.X.size()) < n) {
-    const Eigen::Vector3d Xc(6 * rng.uniform() - 3, 4 * rng.uniform() - 2, 4 + 6 * rng.uniform());
-    const Eigen::Vector3d Xw = s.pose.R_cw.transpose() * (Xc - s.pose.t_cw);
+    const double z = 4 + 6 * rng.uniform();
+    const double y = 4 * rng.uniform() - 2;
+    const double x = 6 * rng.uniform() - 3;
+    const Eigen::Vector3d Xc(x, y, z);
+    const Eigen::Vector3d Xw =
+        test::affineScalar(s.pose.R_cw.transpose(), Xc - s.pose.t_cw, Eigen::Vector3d::Zero());
     const Eigen::Vector2d p = Xc.hnormalized();
     if (std::abs(p.x()) * s.f > 320 || std::abs(p.y()) * s.f > 240) continue;
     s.X.push_back(Xw);
-    s.x.push_back(p + noise_px / s.f * Eigen::Vector2d(test::gaussian(rng), test::gaussian(rng)));
+    s.x.push_back(p + noise_px / s.f * test::gaussian2(rng));
     s.inlier.push_back(1);
   }
   for (int k = 0; k < static_cast<int>(outliers * n);) {
     const auto i = rng.below(static_cast<uint32_t>(n));
     if (!s.inlier[i]) continue;
-    s.x[i] = Eigen::Vector2d(rng.uniform() * 1.2 - 0.6, rng.uniform() * 0.9 - 0.45);
+    const double y = rng.uniform() * 0.9 - 0.45;
+    const double x = rng.uniform() * 1.2 - 0.6;
+    s.x[i] = Eigen::Vector2d(x, y);
     s.inlier[i] = 0;
     ++k;
   }

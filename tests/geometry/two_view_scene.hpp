@@ -2,7 +2,8 @@
 
 // Seeded synthetic two-view (and multi-view) scenes with known K, R, t for the geometry tests
 // (after libmv's TwoViewDataSet): points in a box in front of the cameras, projections with
-// Gaussian noise (Box-Muller on SplitMix64, identical on every platform) and injected outliers.
+// Gaussian noise (Box-Muller on SplitMix64) and injected outliers. Bit-identical on x86-64 and
+// aarch64: one draw per statement, in the order x86-64 used (tests/support/seeded_random.hpp).
 
 #include <cmath>
 #include <vector>
@@ -12,17 +13,61 @@
 
 #include "algo/geometry/pose.hpp"
 #include "algo/math/random.hpp"
+#include "tests/support/seeded_random.hpp"
 
 namespace epitrack::test {
 
-inline double gaussian(SplitMix64& rng) {
-  const double u1 = std::max(rng.uniform(), 1e-300), u2 = rng.uniform();
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+inline double gaussian(SplitMix64& rng) { return standardNormal(rng); }
+
+/// Two independent normal draws (y drawn first, as x86-64 evaluated the former one-liner).
+inline Eigen::Vector2d gaussian2(SplitMix64& rng) {
+  const double y = gaussian(rng);
+  const double x = gaussian(rng);
+  return {x, y};
 }
 
 inline Eigen::Vector3d randomUnit(SplitMix64& rng) {
-  Eigen::Vector3d v(gaussian(rng), gaussian(rng), gaussian(rng));
-  return v.normalized();
+  const double z = gaussian(rng);
+  const double y = gaussian(rng);
+  const double x = gaussian(rng);
+  return Eigen::Vector3d(x, y, z).normalized();
+}
+
+/// R x + t in plain scalar arithmetic: Eigen's vectorised products use fused multiply-adds on
+/// NEON (not on SSE), which would make the scenes differ in the last bit on aarch64.
+inline Eigen::Vector3d affineScalar(const Eigen::Matrix3d& R, const Eigen::Vector3d& x,
+                                    const Eigen::Vector3d& t) {
+  Eigen::Vector3d y;
+  for (int r = 0; r < 3; ++r) {
+    double acc = R(r, 0) * x(0);
+    acc += R(r, 1) * x(1);
+    acc += R(r, 2) * x(2);
+    y(r) = acc + t(r);
+  }
+  return y;
+}
+
+/// exp of the rotation vector w (Rodrigues) in plain scalar arithmetic, for the same reason.
+inline Eigen::Matrix3d rotationScalar(const Eigen::Vector3d& w) {
+  const double theta2 = w(0) * w(0) + w(1) * w(1) + w(2) * w(2);
+  const double theta = std::sqrt(theta2);
+  const double a = theta2 < 1e-16 ? 1.0 : std::sin(theta) / theta;
+  const double b = theta2 < 1e-16 ? 0.5 : (1.0 - std::cos(theta)) / theta2;
+  // R = I + a [w]x + b [w]x^2, with [w]x^2 = w w^T - |w|^2 I.
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      const double wx2 = w(r) * w(c) - (r == c ? theta2 : 0.0);
+      R(r, c) = (r == c ? 1.0 : 0.0) + b * wx2;
+    }
+  }
+  R(0, 1) -= a * w(2);
+  R(0, 2) += a * w(1);
+  R(1, 0) += a * w(2);
+  R(1, 2) -= a * w(0);
+  R(2, 0) -= a * w(1);
+  R(2, 1) += a * w(0);
+  return R;
 }
 
 /// Camera looking from `centre` at `target` (camera y roughly along world +y, i.e. "down").
@@ -35,7 +80,7 @@ inline PoseCw lookAt(const Eigen::Vector3d& centre, const Eigen::Vector3d& targe
   p.R_cw.row(0) = x.transpose();
   p.R_cw.row(1) = y.transpose();
   p.R_cw.row(2) = z.transpose();
-  p.t_cw = -p.R_cw * centre;
+  p.t_cw = -affineScalar(p.R_cw, centre, Eigen::Vector3d::Zero());
   return p;
 }
 
@@ -52,7 +97,7 @@ struct TwoViewScene {
     return k;
   }
   [[nodiscard]] Eigen::Vector2d project(const PoseCw& p, const Eigen::Vector3d& Xw) const {
-    const Eigen::Vector3d c = p.toCamera(Xw);
+    const Eigen::Vector3d c = affineScalar(p.R_cw, Xw, p.t_cw);
     return {f * c.x() / c.z() + (width - 1) * 0.5, f * c.y() / c.z() + (height - 1) * 0.5};
   }
   [[nodiscard]] Eigen::Vector2d normalize(const Eigen::Vector2d& px) const {
@@ -78,21 +123,26 @@ inline TwoViewScene makeTwoViewScene(uint64_t seed, int count, double noise_px,
     case Motion::kPlanarScene: {
       // Lateral baseline with a rotation that keeps the scene in view but whose optical axes do
       // not meet (an off-target look point).
-      const Eigen::Vector3d c2 = Eigen::Vector3d(1.5 + 0.5 * rng.uniform(),
-                                                 0.4 * rng.uniform() - 0.2, 0.3 * rng.uniform());
-      const Eigen::Vector3d look =
-          target + Eigen::Vector3d(1.5 + rng.uniform(), 1.0 * rng.uniform() - 0.5, 0.0);
+      const double c2z = 0.3 * rng.uniform();
+      const double c2y = 0.4 * rng.uniform() - 0.2;
+      const double c2x = 1.5 + 0.5 * rng.uniform();
+      const Eigen::Vector3d c2(c2x, c2y, c2z);
+      const double look_y = 1.0 * rng.uniform() - 0.5;
+      const double look_x = 1.5 + rng.uniform();
+      const Eigen::Vector3d look = target + Eigen::Vector3d(look_x, look_y, 0.0);
       s.cam2 = lookAt(c2, look);
       break;
     }
     case Motion::kRotation:
-      s.cam2.R_cw = expSo3(Eigen::Vector3d(0.02, 0.15, 0.03));
+      s.cam2.R_cw = rotationScalar(Eigen::Vector3d(0.02, 0.15, 0.03));
       break;
     case Motion::kTranslation:
       s.cam2.t_cw = -Eigen::Vector3d(0.8, 0.1, 0.4);
       break;
     case Motion::kOrbit:
-      s.cam2 = lookAt(target + expSo3(Eigen::Vector3d(0, 0.25, 0)) * (-target), target);
+      s.cam2 = lookAt(target + affineScalar(rotationScalar(Eigen::Vector3d(0, 0.25, 0)), -target,
+                                            Eigen::Vector3d::Zero()),
+                      target);
       break;
   }
   const int n_out = static_cast<int>(std::lround(outlier_fraction * count));
@@ -100,16 +150,21 @@ inline TwoViewScene makeTwoViewScene(uint64_t seed, int count, double noise_px,
   while (static_cast<int>(s.X.size()) < count && attempts++ < 100 * count) {
     Eigen::Vector3d X;
     if (motion == Motion::kPlanarScene) {
-      X = Eigen::Vector3d(6 * rng.uniform() - 3, 4 * rng.uniform() - 2, 0.0);
-      X = target + expSo3(Eigen::Vector3d(0.4, 0.2, 0)) * X;  // a tilted plane
+      const double y = 4 * rng.uniform() - 2;
+      const double x = 6 * rng.uniform() - 3;
+      X = Eigen::Vector3d(x, y, 0.0);
+      X = affineScalar(rotationScalar(Eigen::Vector3d(0.4, 0.2, 0)), X, target);  // tilted plane
     } else {
-      X = Eigen::Vector3d(8 * rng.uniform() - 4, 6 * rng.uniform() - 3, 3.0 + 7.0 * rng.uniform());
+      const double z = 3.0 + 7.0 * rng.uniform();
+      const double y = 6 * rng.uniform() - 3;
+      const double x = 8 * rng.uniform() - 4;
+      X = Eigen::Vector3d(x, y, z);
     }
     const Eigen::Vector2d p1 = s.project(s.cam1, X), p2 = s.project(s.cam2, X);
     if (s.cam2.toCamera(X).z() <= 0.5 || !s.inside(p1) || !s.inside(p2)) continue;
     s.X.push_back(X);
-    s.x1.push_back(p1 + noise_px * Eigen::Vector2d(gaussian(rng), gaussian(rng)));
-    s.x2.push_back(p2 + noise_px * Eigen::Vector2d(gaussian(rng), gaussian(rng)));
+    s.x1.push_back(p1 + noise_px * gaussian2(rng));
+    s.x2.push_back(p2 + noise_px * gaussian2(rng));
     s.is_inlier.push_back(1);
   }
   for (int k = 0; k < n_out && k < static_cast<int>(s.X.size());) {
@@ -118,7 +173,9 @@ inline TwoViewScene makeTwoViewScene(uint64_t seed, int count, double noise_px,
     ++k;
     Eigen::Vector2d r;
     do {
-      r = Eigen::Vector2d(rng.uniform() * (s.width - 1), rng.uniform() * (s.height - 1));
+      const double y = rng.uniform() * (s.height - 1);
+      const double x = rng.uniform() * (s.width - 1);
+      r = Eigen::Vector2d(x, y);
     } while ((r - s.x2[i]).norm() < 20.0);
     s.x2[i] = r;
     s.is_inlier[i] = 0;
@@ -126,9 +183,11 @@ inline TwoViewScene makeTwoViewScene(uint64_t seed, int count, double noise_px,
   return s;
 }
 
-/// Angle between two rotations in degrees.
+/// Angle between two rotations in degrees, from ||A - B||_F = 2 sqrt(2) sin(angle / 2): exact
+/// down to 1e-12 deg, where acos((trace - 1) / 2) cannot resolve angles below about 1e-6 deg.
 inline double rotationErrorDeg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
-  return rotationAngle(A.transpose() * B) * 180.0 / M_PI;
+  const double half_sin = std::min(1.0, (A - B).norm() / (2.0 * std::sqrt(2.0)));
+  return 2.0 * std::asin(half_sin) * 180.0 / M_PI;
 }
 
 /// Angle between two directions in degrees.

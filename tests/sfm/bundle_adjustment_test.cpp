@@ -30,9 +30,13 @@ Problem makeProblem(int n_cams, int n_points, double noise_px, uint64_t seed, do
   epitrack::synth::SplitMix64 rng(seed);
   Problem pr;
   pr.k = BaIntrinsics{600.0, 1.0, 351.5, 287.5, k1, k2};
+  // One draw per statement, in the order x86-64 evaluated the former one-expression form
+  // (tests/support/seeded_random.hpp), so the problems are the same on aarch64.
   for (int i = 0; i < n_points; ++i) {
-    pr.points.emplace_back(rng.uniform(-spread, spread), rng.uniform(-spread, spread),
-                           rng.uniform(-1, 1));
+    const double z = rng.uniform(-1, 1);
+    const double y = rng.uniform(-spread, spread);
+    const double x = rng.uniform(-spread, spread);
+    pr.points.emplace_back(x, y, z);
   }
   for (int c = 0; c < n_cams; ++c) {
     const double a = -0.6 + 1.2 * c / std::max(1, n_cams - 1);
@@ -54,7 +58,9 @@ Problem makeProblem(int n_cams, int n_points, double noise_px, uint64_t seed, do
       if (!BundleAdjuster::project(pr.cameras[static_cast<std::size_t>(c)], pr.k,
                                    pr.points[static_cast<std::size_t>(i)], uv))
         continue;
-      uv += noise_px * Eigen::Vector2d(rng.gaussian(), rng.gaussian());
+      const double ny = rng.gaussian();
+      const double nx = rng.gaussian();
+      uv += noise_px * Eigen::Vector2d(nx, ny);
       pr.obs.push_back({c, i, uv});
     }
   }
@@ -74,12 +80,19 @@ TEST_CASE("Analytic BA Jacobians match central differences", "[sfm][ba]") {
   epitrack::synth::SplitMix64 rng(5);
   for (int trial = 0; trial < 50; ++trial) {
     BaCamera c;
-    c.R_cw =
-        Eigen::AngleAxisd(rng.uniform(-1, 1),
-                          Eigen::Vector3d(rng.uniform(-1, 1), rng.uniform(-1, 1), 1).normalized())
-            .toRotationMatrix();
-    c.t_cw = Eigen::Vector3d(rng.uniform(-1, 1), rng.uniform(-1, 1), 5.0);
-    const Eigen::Vector3d X(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    const double axis_y = rng.uniform(-1, 1);
+    const double axis_x = rng.uniform(-1, 1);
+    const double angle = rng.uniform(-1, 1);
+    c.R_cw = Eigen::AngleAxisd(angle, Eigen::Vector3d(axis_x, axis_y, 1).normalized())
+                 .toRotationMatrix();
+    const double ty = rng.uniform(-1, 1);
+    const double tx = rng.uniform(-1, 1);
+    c.t_cw = Eigen::Vector3d(tx, ty, 5.0);
+    const double z = rng.uniform(-1, 1);
+    const double y = rng.uniform(-1, 1);
+    const double x = rng.uniform(-1, 1);
+    const Eigen::Vector3d X(x, y, z);
+    // A braced list is evaluated left to right on every platform.
     BaIntrinsics k{rng.uniform(300, 900),  rng.uniform(0.95, 1.05), 320, 240,
                    rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1)};
     Eigen::Vector2d uv;
@@ -141,12 +154,17 @@ TEST_CASE("BA recovers perturbed cameras and points exactly without noise", "[sf
     p.cameras[c].R_cw =
         Eigen::AngleAxisd(0.02, Eigen::Vector3d(rng.uniform(-1, 1), 1, 0).normalized()) *
         p.cameras[c].R_cw;
-    p.cameras[c].t_cw +=
-        Eigen::Vector3d(rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1));
+    const double dz = rng.uniform(-0.1, 0.1);
+    const double dy = rng.uniform(-0.1, 0.1);
+    const double dx = rng.uniform(-0.1, 0.1);
+    p.cameras[c].t_cw += Eigen::Vector3d(dx, dy, dz);
   }
-  for (auto& X : p.points)
-    X += Eigen::Vector3d(rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05),
-                         rng.uniform(-0.05, 0.05));
+  for (auto& X : p.points) {
+    const double dz = rng.uniform(-0.05, 0.05);
+    const double dy = rng.uniform(-0.05, 0.05);
+    const double dx = rng.uniform(-0.05, 0.05);
+    X += Eigen::Vector3d(dx, dy, dz);
+  }
   std::vector<uint8_t> fixed(p.cameras.size(), 0);
   fixed.front() = 1;  // first and last fixed: the gauge (including scale) is determined
   fixed.back() = 1;
@@ -193,8 +211,11 @@ TEST_CASE("Huber loss keeps gross outliers from dragging the solution", "[sfm][b
   const Problem truth = makeProblem(8, 150, 0.0, 31);
   Problem p = truth;
   epitrack::synth::SplitMix64 rng(8);
-  for (std::size_t i = 0; i < p.obs.size(); i += 23)
-    p.obs[i].xy += Eigen::Vector2d(rng.uniform(20, 40), rng.uniform(-40, 40));
+  for (std::size_t i = 0; i < p.obs.size(); i += 23) {
+    const double dy = rng.uniform(-40, 40);
+    const double dx = rng.uniform(20, 40);
+    p.obs[i].xy += Eigen::Vector2d(dx, dy);
+  }
   for (auto& X : p.points) X += Eigen::Vector3d(0.02, -0.02, 0.01);
   std::vector<uint8_t> fixed(p.cameras.size(), 0);
   fixed.front() = 1;

@@ -49,9 +49,13 @@ struct PlaneScene {
     u = normal.unitOrthogonal();
     v = normal.cross(u);
     const Eigen::Vector3d base = offset * normal + 0.4 * u - 0.9 * v;
+    // One draw per statement, in the order x86-64 evaluated the former one-expression form
+    // (tests/support/seeded_random.hpp), so the scene is the same on aarch64.
     for (int i = 0; i < on_plane; ++i) {
-      const Eigen::Vector3d X =
-          base + rng.uniform(-3, 3) * u + rng.uniform(-2, 4) * v + noise * rng.gaussian() * normal;
+      const double h = noise * rng.gaussian();
+      const double b = rng.uniform(-2, 4);
+      const double a = rng.uniform(-3, 3);
+      const Eigen::Vector3d X = base + a * u + b * v + h * normal;
       points.push_back(X);
       plane_centroid += X;
     }
@@ -59,8 +63,10 @@ struct PlaneScene {
     plane_centroid /= on_plane;
     for (int i = 0; i < clutter; ++i) {
       const double side = rng.uniform() < 0.7 ? 1.0 : -1.0;
-      points.push_back(base + rng.uniform(-3, 3) * u + rng.uniform(-2, 4) * v +
-                       side * rng.uniform(0.3, 2.5) * normal);
+      const double h = side * rng.uniform(0.3, 2.5);
+      const double b = rng.uniform(-2, 4);
+      const double a = rng.uniform(-3, 3);
+      points.push_back(base + a * u + b * v + h * normal);
     }
     for (std::size_t i = 0; i < points.size(); ++i) ids.push_back(static_cast<int64_t>(100 + i));
     for (int i = 0; i < 9; ++i) {
@@ -186,7 +192,10 @@ TEST_CASE("no plane falls back to the first-camera frame with a status", "[scene
   synth::SplitMix64 rng(9);
   std::vector<Eigen::Vector3d> blob;
   for (int i = 0; i < 400; ++i) {
-    Eigen::Vector3d X(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    const double z = rng.uniform(-1, 1);
+    const double y = rng.uniform(-1, 1);
+    const double x = rng.uniform(-1, 1);
+    const Eigen::Vector3d X(x, y, z);
     blob.push_back(X + Eigen::Vector3d(0, 0, 5));
   }
   std::vector<ScenePose> cams(3);
@@ -278,9 +287,16 @@ void roomCorner(int floor, int wall, std::vector<Eigen::Vector3d>& points,
   synth::SplitMix64 rng(21);
   points.clear();
   cameras.clear();
-  for (int i = 0; i < floor; ++i)
-    points.emplace_back(rng.uniform(-3, 3), rng.uniform(-1, 2.7), 0.0);
-  for (int i = 0; i < wall; ++i) points.emplace_back(rng.uniform(-3, 3), 3.0, rng.uniform(0.3, 3));
+  for (int i = 0; i < floor; ++i) {
+    const double y = rng.uniform(-1, 2.7);
+    const double x = rng.uniform(-3, 3);
+    points.emplace_back(x, y, 0.0);
+  }
+  for (int i = 0; i < wall; ++i) {
+    const double z = rng.uniform(0.3, 3);
+    const double x = rng.uniform(-3, 3);
+    points.emplace_back(x, 3.0, z);
+  }
   for (int i = 0; i < 8; ++i) {
     ScenePose c;
     c.p_wc = Eigen::Vector3d(-1.0 + 0.25 * i, -2.0, 1.6 + 0.02 * i);

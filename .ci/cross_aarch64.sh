@@ -8,11 +8,15 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 native=${EPITRACK_BUILD_DIR:-$root/build/test}
 cross=$root/build/cross-aarch64
 
-# The core suites that run quickly under emulation: image core, frame sources and codecs, the fake
-# V4L2 driver. (Geometry tests draw their random scenes through std:: distributions whose long
-# double arithmetic differs on aarch64, so their seeded scenes differ and a few tolerance checks
-# fail there: open in issue 8.)
-EPITRACK_CTEST_ARGS="-L ^(algo|hal)$ ${EPITRACK_CTEST_ARGS:-}" bash "$root/tools/cross.sh" aarch64 "$cross" --test
+# The core suite under emulation: image core, geometry solvers (their seeded scenes are
+# bit-identical on both architectures: SplitMix64, one draw per statement), frame sources and
+# codecs, the fake V4L2 driver and the zero-allocation checks. The solver, tracker, device and
+# command suites render synthetic clips, which takes tens of minutes under qemu; they run natively
+# in tools/test.sh, and the bit-exact tracks.csv check below covers the tracker on aarch64.
+# "Y4M streams from a pipe" is left out here: its writer thread and a blocking pipe read livelock
+# under qemu-user (it runs natively and under the sanitizers).
+EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|geometry|hal|alloc)$ -E ^Y4M.streams.from.a.pipe$ ${EPITRACK_CTEST_ARGS:-}" \
+  bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest
 rm -rf "$clip"

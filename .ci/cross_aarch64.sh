@@ -8,11 +8,18 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 native=${EPITRACK_BUILD_DIR:-$root/build/test}
 cross=$root/build/cross-aarch64
 
-# The core suites that run quickly under emulation: image core, frame sources and codecs, the fake
-# V4L2 driver. (Geometry tests draw their random scenes through std:: distributions whose long
-# double arithmetic differs on aarch64, so their seeded scenes differ and a few tolerance checks
-# fail there: open in issue 8.)
-EPITRACK_CTEST_ARGS="-L ^(algo|hal)$ ${EPITRACK_CTEST_ARGS:-}" bash "$root/tools/cross.sh" aarch64 "$cross" --test
+# The core suite under emulation: image core (algo), frame sources and codecs (hal), geometry
+# solvers, the allocation tests (zero allocation per frame, including the 500-frame device loop)
+# and the solver (sfm). Test scenes are bit-identical on both machines (one random draw per
+# statement, tests/support/seeded_random.hpp), so the same tolerances hold. Measured under
+# qemu-aarch64 (CPU seconds): algo 2, alloc 84, geometry+sfm about 290; the stage (build, tests,
+# digest) fits in about 12 minutes on 2 cores.
+# Left out: the tracker, device, tools, render and export labels. Their tests run the commands,
+# and epitrack-synth does not finish under qemu-aarch64 (not even 2 frames of 128x96 in 5 minutes,
+# while it takes 0.03 s natively; in-process rendering, as in the allocation tests, is fine): open
+# in issue 8. The tracker's bit-exactness is checked below on a clip rendered natively.
+EPITRACK_CTEST_ARGS="-L ^(algo|hal|geometry|alloc|sfm)$ ${EPITRACK_CTEST_ARGS:-}" \
+  bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest
 rm -rf "$clip"

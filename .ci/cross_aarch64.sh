@@ -8,14 +8,19 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 native=${EPITRACK_BUILD_DIR:-$root/build/test}
 cross=$root/build/cross-aarch64
 
-# The core suite under emulation: image core, geometry solvers (their seeded scenes are
-# bit-identical on both architectures: SplitMix64, one draw per statement), frame sources and
-# codecs, the fake V4L2 driver and the zero-allocation checks. The solver, tracker, device and
-# command suites render synthetic clips, which takes tens of minutes under qemu; they run natively
-# in tools/test.sh, and the bit-exact tracks.csv check below covers the tracker on aarch64.
-# "Y4M streams from a pipe" is left out here: its writer thread and a blocking pipe read livelock
-# under qemu-user (it runs natively and under the sanitizers).
-EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|geometry|hal|alloc)$ -E ^Y4M.streams.from.a.pipe$ ${EPITRACK_CTEST_ARGS:-}" \
+# The core suite under emulation: image core (algo), frame sources and codecs (hal), geometry
+# solvers, the allocation tests (zero allocation per frame, including the 500-frame device loop)
+# and the solver (sfm). Test scenes are bit-identical on both machines (one random draw per
+# statement, tests/support/seeded_random.hpp), so the same tolerances hold. Measured under
+# qemu-aarch64 (CPU seconds): algo 2, alloc 84, geometry+sfm about 290.
+# Left out: the tracker, device, tools, render and export labels, whose tests run the commands
+# (rendering clips with epitrack-synth under emulation is far too slow for CI; in-process
+# rendering, as in the allocation tests, is fine); the tracker's bit-exactness is checked below on
+# a clip rendered natively. Also left out: "Y4M streams from a pipe", whose writer thread and
+# blocking pipe read livelock under qemu-user (it runs natively and under the sanitizers).
+# --timeout: a test that hangs under emulation fails the stage instead of stalling it.
+EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -E ^Y4M.streams.from.a.pipe$ ${EPITRACK_CTEST_ARGS:-}" \
+  bash "$root/tools/cross.sh" aarch64 "$cross" --test
   bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest

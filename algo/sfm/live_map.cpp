@@ -632,10 +632,23 @@ void LiveMap::adjustWindow() {
   // adjustment cannot move it; with one (the two-view start) the scale is free, so it is restored
   // afterwards (otherwise every adjustment lets it wander and the poses already sent jump).
   const int n_free = std::min(options_.ba_window, std::max(1, n_cams - 2));
+  for (int c = 0; c < n_free; ++c) ba_kf_seq_[static_cast<std::size_t>(c)] = newest - c;
+  // Fixed cameras: the keyframe just before the window, then the older ones spread evenly back
+  // to the oldest of the ring. Keyframes come densely (every frame while the map is young), so
+  // the newest ones alone span a short baseline; the old ones observe the same points from far
+  // away and pin their depths (the long baseline is what makes a point accurate).
+  const int n_fixed = n_cams - n_free;
+  const int64_t older = total - n_free;  // keyframes before the window, n_fixed <= older
+  for (int k = 0; k < n_fixed; ++k) {
+    // back 0: the keyframe just before the window, older - 1: the oldest of the ring.
+    const int64_t back =
+        n_fixed > 1 ? (static_cast<int64_t>(k) * (older - 1) + (n_fixed - 1) / 2) / (n_fixed - 1)
+                    : 0;
+    ba_kf_seq_[static_cast<std::size_t>(n_free + k)] = newest - n_free - back;
+  }
   for (int c = 0; c < n_cams; ++c) {
-    const int64_t seq = newest - c;
-    ba_kf_seq_[static_cast<std::size_t>(c)] = seq;
-    ba_cameras_[static_cast<std::size_t>(c)] = toBa(keyframe(seq)->pose);
+    ba_cameras_[static_cast<std::size_t>(c)] =
+        toBa(keyframe(ba_kf_seq_[static_cast<std::size_t>(c)])->pose);
     ba_fixed_[static_cast<std::size_t>(c)] = c < n_free ? 0 : 1;
   }
   // Points observed by the free cameras.

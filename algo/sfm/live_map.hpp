@@ -23,9 +23,10 @@ namespace epitrack {
 struct LiveMapOptions {
   int max_features = 300;  ///< tracks per frame (the FeatureTracker's max_features)
   int max_points = 2000;   ///< map points alive at once ("full" stops triangulation, never grows)
-  int max_keyframes = 16;  ///< keyframes kept (poses and observations), a ring
-  int ba_window = 5;       ///< newest keyframes refined at each new keyframe
-  int ba_fixed = 5;        ///< older keyframes of the ring joining the adjustment as fixed cameras
+  int max_keyframes = 32;  ///< keyframes kept (poses and observations), a ring
+  int ba_window = 10;      ///< newest keyframes refined at each new keyframe
+  int ba_fixed =
+      5;  ///< older keyframes joining the adjustment as fixed cameras, spread over the ring
   int ba_iterations = 6;
   double huber_px = 1.0;
   double reproj_threshold_px = 2.5;      ///< PnP inlier and triangulation acceptance threshold
@@ -35,7 +36,7 @@ struct LiveMapOptions {
   int init_min_points = 50;              ///< triangulated points needed to accept an initial pair
   int init_max_gap = 300;  ///< frames after which a reference that never initialised is renewed
   double min_point_parallax_deg = 1.0;  ///< triangulation: angle between the two rays
-  double keyframe_parallax_deg = 0.5;   ///< new keyframe at this median parallax to the last
+  double keyframe_parallax_deg = 0.3;   ///< new keyframe at this median parallax to the last
   int keyframe_max_gap = 8;             ///< or after this many frames
   int young_map_keyframes = 16;         ///< until the map has this many keyframes ...
   int young_map_keyframe_gap = 1;       ///< ... a keyframe every this many frames
@@ -79,7 +80,8 @@ struct LiveFrameResult {
 /// enough median parallax exist. Afterwards each frame is resected by PnP-RANSAC + refinement on
 /// the map points of its tracks (§5.4); a frame becomes a keyframe by measured parallax (or track
 /// loss or a gap), tracks without a point are triangulated between their first keyframe and the
-/// new one, and a windowed bundle adjustment refines the newest keyframes. When resection fails
+/// new one, and a windowed bundle adjustment refines the newest keyframes against older ones spread
+/// over the keyframe ring (fixed: they hold the gauge and the long baselines). When resection fails
 /// the frame is `kLost` and the map restarts from it.
 ///
 /// Memory: records per live track, a keyframe ring with its observations, the point pool and the

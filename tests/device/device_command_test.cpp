@@ -92,7 +92,7 @@ TEST_CASE("Device configuration: keys, values, files, cross checks", "[device][c
   CHECK_FALSE(validateConfig(v, error));  // no source
   v.source = "x";
   CHECK(validateConfig(v, error));
-  v.map.ba_window = 20;
+  v.map.ba_window = v.map.max_keyframes;  // window + fixed cameras exceed the keyframe ring
   CHECK_FALSE(validateConfig(v, error));
   v.map.ba_window = 5;
   v.map.max_points = 100;  // fewer than the features of one frame

@@ -36,7 +36,7 @@ epitrack::eval::TrajectoryMetrics evaluate(const std::vector<epitrack::hal::Traj
 }
 
 void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init_frame,
-                             bool self_calibrate, const std::string& tag) {
+                             double max_ratio, bool self_calibrate, const std::string& tag) {
   TempDir dir(tag);
   const std::string clip = dir.file("clip");
   REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " " + synth_args + " --out " + clip +
@@ -86,10 +86,9 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
       offline.ate_rmse_rel, offline.matched_frames, offline.rot_err_deg_mean,
       live.ate_rmse_rel / offline.ate_rmse_rel, summary.c_str());
   INFO("live " << live.ate_rmse_rel << " offline " << offline.ate_rmse_rel);
-  // Issue 8 asks for 2x. Measured after the real-footage tracker landed: 2.4x (orbit) and 2.5x
-  // (handheld), because the offline solve improved more than the live map; the 2x target is open
-  // in issue 8 and this bound guards against further regression. Absolute bound as well:
-  CHECK(live.ate_rmse_rel <= 3.0 * offline.ate_rmse_rel);
+  // Issue 8 asks for 2x; max_ratio is the bound each clip meets today (see the test cases).
+  CHECK(live.ate_rmse_rel <= max_ratio * offline.ate_rmse_rel);
+  // Absolute bound as well:
   CHECK(live.ate_rmse_rel < 6e-4);
   CHECK(live.rot_err_deg_mean < 1.0);
 
@@ -129,19 +128,22 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
 
 }  // namespace
 
-TEST_CASE("Live poses on a replayed orbit are within 2x the offline solver, and self-calibrated",
+TEST_CASE("Live poses on a replayed orbit stay near the offline solver, and self-calibrated",
           "[device][accuracy]") {
-  // Measured (Release, x86-64): live 0.00020, offline 0.00013 (ratio 1.6); initialised at frame 10.
+  // Measured (Release, x86-64): live 0.00032, offline 0.00013 (ratio 2.40), initialised at frame
+  // 10. The live error is drift: a slow bend of the orbit (0.2 deg of rotation over 140 frames)
+  // that the offline global adjustment removes and a causal windowed one cannot; the 2x target is
+  // still open here (issue 8), the bound guards against regression.
   checkLiveAgainstOffline(
-      "--scene orbit --frames 150 --size 480x360 --focal 420 --target-wander 0.5 --quiet", 30, true,
-      "device-orbit");
+      "--scene orbit --frames 150 --size 480x360 --focal 420 --target-wander 0.5 --quiet", 30, 2.75,
+      true, "device-orbit");
 }
 
 TEST_CASE("Live poses on a replayed handheld clip are within 2x the offline solver",
           "[device][accuracy]") {
   // The handheld walk is slow (5 mm a frame, 7 m from the scene): the offline solver needs about
   // 300 frames to find parallax, and the live map initialises at frame 80 (0.4 m of baseline).
-  // Measured: live 0.00039, offline 0.00020 (ratio 1.9).
+  // Measured (Release, x86-64): live 0.00021, offline 0.00016 (ratio 1.38): the issue's 2x holds.
   checkLiveAgainstOffline("--scene handheld --frames 300 --size 480x360 --focal 420 --quiet", 100,
-                          false, "device-handheld");
+                          2.0, false, "device-handheld");
 }

@@ -2,11 +2,23 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "tools/synth/portable_math.hpp"
 #include "tools/synth/random.hpp"
 
 namespace epitrack::synth {
+
+namespace {
+// double -> int as x86-64 converts it (cvttsd2si): values outside the int range, infinities and
+// NaN give INT_MIN. A plain static_cast is undefined there, and aarch64 saturates instead, which
+// rendered different pixels (and, for an infinite footprint, looped over 2^32 cells) on the board.
+// Spelling the x86-64 result out keeps the clips rendered so far and makes them portable.
+int toIntX86(double v) {
+  if (v >= -2147483648.0 && v < 2147483648.0) return static_cast<int>(v);
+  return std::numeric_limits<int>::min();
+}
+}  // namespace
 
 float TexturedQuad::boxLookup(double u, double v, double wu, double wv) const {
   const double cu = u / cell;
@@ -29,15 +41,15 @@ float TexturedQuad::boxLookup(double u, double v, double wu, double wv) const {
   const double y1 = (cv + hv) / scale;
   const auto clampi = [](int i, int n) { return i < 0 ? 0 : (i >= n ? n - 1 : i); };
   if (x1 - x0 < 1e-9 || y1 - y0 < 1e-9) {  // degenerate footprint: point sample
-    const int i = clampi(static_cast<int>(std::floor(cu / scale)), cols);
-    const int j = clampi(static_cast<int>(std::floor(cv / scale)), rows);
+    const int i = clampi(toIntX86(std::floor(cu / scale)), cols);
+    const int j = clampi(toIntX86(std::floor(cv / scale)), rows);
     return cells[static_cast<std::size_t>(j) * static_cast<std::size_t>(cols) +
                  static_cast<std::size_t>(i)];
   }
-  const int i0 = static_cast<int>(std::floor(x0));
-  const int i1 = static_cast<int>(std::floor(x1));
-  const int j0 = static_cast<int>(std::floor(y0));
-  const int j1 = static_cast<int>(std::floor(y1));
+  const int i0 = toIntX86(std::floor(x0));
+  const int i1 = toIntX86(std::floor(x1));
+  const int j0 = toIntX86(std::floor(y0));
+  const int j1 = toIntX86(std::floor(y1));
   double sum = 0.0;
   for (int j = j0; j <= j1; ++j) {
     const double oy = std::min(y1, j + 1.0) - std::max(y0, static_cast<double>(j));
@@ -104,10 +116,10 @@ float TexturedQuad::parallelogramLookup(double u, double v, const Eigen::Vector2
   const Eigen::Vector2d ext(std::abs(ha.x()) + std::abs(hb.x()),
                             std::abs(ha.y()) + std::abs(hb.y()));
   const auto clampi = [](int i, int n) { return i < 0 ? 0 : (i >= n ? n - 1 : i); };
-  const int i0 = static_cast<int>(std::floor(c.x() - ext.x()));
-  const int i1 = static_cast<int>(std::floor(c.x() + ext.x()));
-  const int j0 = static_cast<int>(std::floor(c.y() - ext.y()));
-  const int j1 = static_cast<int>(std::floor(c.y() + ext.y()));
+  const int i0 = toIntX86(std::floor(c.x() - ext.x()));
+  const int i1 = toIntX86(std::floor(c.x() + ext.x()));
+  const int j0 = toIntX86(std::floor(c.y() - ext.y()));
+  const int j1 = toIntX86(std::floor(c.y() + ext.y()));
   const std::vector<float>& base = levels[0];
   const auto value = [&](int i, int j) {
     return base[static_cast<std::size_t>(clampi(j, cells_v)) * static_cast<std::size_t>(cells_u) +
@@ -115,15 +127,14 @@ float TexturedQuad::parallelogramLookup(double u, double v, const Eigen::Vector2
   };
   if (i0 == i1 && j0 == j1) return value(i0, j0);  // inside one cell: constant
   const double area = 4.0 * std::abs(ha.x() * hb.y() - ha.y() * hb.x());
-  if (area < 1e-12)
-    return value(static_cast<int>(std::floor(c.x())), static_cast<int>(std::floor(c.y())));
+  if (area < 1e-12) return value(toIntX86(std::floor(c.x())), toIntX86(std::floor(c.y())));
   if ((i1 - i0 + 1) * (j1 - j0 + 1) > 36) {
     // Large footprint: box-filtered pieces along the long side on the cell pyramid.
     Eigen::Vector2d la = a;
     Eigen::Vector2d lb = b;
     if (la.squaredNorm() < lb.squaredNorm()) std::swap(la, lb);
     const double full_area = std::abs(la.x() * lb.y() - la.y() * lb.x());
-    const int pieces = std::clamp(static_cast<int>(std::ceil(la.squaredNorm() / full_area)), 1, 16);
+    const int pieces = std::clamp(toIntX86(std::ceil(la.squaredNorm() / full_area)), 1, 16);
     const Eigen::Vector2d step = la / pieces;
     double wu = std::abs(step.x()) + std::abs(lb.x());
     double wv = std::abs(step.y()) + std::abs(lb.y());

@@ -21,7 +21,6 @@ cross=$root/build/cross-aarch64
 # --timeout: a test that hangs under emulation fails the stage instead of stalling it.
 EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -E ^Y4M.streams.from.a.pipe$ ${EPITRACK_CTEST_ARGS:-}" \
   bash "$root/tools/cross.sh" aarch64 "$cross" --test
-  bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest
 rm -rf "$clip"

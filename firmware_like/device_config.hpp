@@ -31,8 +31,8 @@ bool applyConfigValue(DeviceConfig& config, const std::string& key, const std::s
 
 /// The same without the key in the message (only why the value is refused), for callers that
 /// name the option themselves (`--features: '5' is outside [16..4000]`).
-bool applyConfigValueReason(DeviceConfig& config, const std::string& key,
-                            const std::string& value, std::string& reason);
+bool applyConfigValueReason(DeviceConfig& config, const std::string& key, const std::string& value,
+                            std::string& reason);
 
 /// "[lo..hi]" for a numeric key, empty otherwise.
 std::string configKeyRange(const std::string& key);

@@ -24,8 +24,18 @@ else()
   set(_qemu qemu-arm)
 endif()
 find_program(EPITRACK_QEMU ${_qemu})
-if(EPITRACK_QEMU)
+if(EPITRACK_QEMU AND EPITRACK_SYSROOT)
   set(CMAKE_CROSSCOMPILING_EMULATOR ${EPITRACK_QEMU} -L ${_qemu_ld_prefix})
+elseif(EPITRACK_QEMU)
+  # Debian's cross loader (/usr/<triple>/lib, libc6-<arch>-cross) must run with the C library of
+  # the same build. Under -L, the loader's default path /lib/<triple> falls through to the build
+  # machine's multiarch libc6:<arch> (installed with libturbojpeg0-dev:<arch>), usually another
+  # Debian revision: with that pair, pthread_create spins forever (any program starting a thread
+  # hung under emulation). LD_LIBRARY_PATH puts the loader's own libc first; the multiarch
+  # directory still provides libjpeg-turbo and libpng.
+  set(CMAKE_CROSSCOMPILING_EMULATOR
+      ${EPITRACK_QEMU} -L ${_qemu_ld_prefix} -E
+      LD_LIBRARY_PATH=${_qemu_ld_prefix}/lib:/usr/lib/${EPITRACK_TARGET_TRIPLE})
 endif()
 if(EPITRACK_CPU_FLAGS_FILE)
   include(${EPITRACK_CPU_FLAGS_FILE})

@@ -77,6 +77,29 @@ bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
   return true;
 }
 
+/// Warped positions of the affine alignment: 16.16 fixed point.
+constexpr int kPosBits = 16;
+constexpr double kPosOne = static_cast<double>(1 << kPosBits);
+
+/// Bilinear sample of `image` at the 16.16 fixed-point position (X, Y), in 1/2^kValueBits gray
+/// levels: the fraction is cut to kWeightBits, the four weights rounded and summing to 1 exactly.
+inline int32_t sampleAt16(ImageView<const uint8_t> image, int32_t X, int32_t Y) {
+  constexpr int kOne = 1 << PyramidalLk::kWeightBits;
+  constexpr int kShift = PyramidalLk::kWeightBits - PyramidalLk::kValueBits;
+  constexpr int kRound = 1 << (kShift - 1);
+  const int ix = X >> kPosBits;
+  const int iy = Y >> kPosBits;
+  const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
+  const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
+  const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
+  const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
+  const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> PyramidalLk::kWeightBits;
+  const int32_t w11 = kOne - w00 - w01 - w10;
+  const uint8_t* r0 = image.row(iy) + ix;
+  const uint8_t* r1 = r0 + image.stride;
+  return (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
+}
+
 }  // namespace
 
 void PyramidalLk::setAffineHessian(int slot) {
@@ -305,11 +328,6 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
   const int16_t* Sx = grad_x_.data() + base;
   const int16_t* Sy = grad_y_.data() + base;
   const auto& Hi = at.H_inv;
-  constexpr int kPosBits = 16;  // warped positions in 16.16 fixed point
-  constexpr int kOne = 1 << kWeightBits;
-  constexpr int kShift = kWeightBits - kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
-  constexpr double kPosOne = static_cast<double>(1 << kPosBits);
   const double eps2 = options_.epsilon * options_.epsilon;
   const double h = half_;
   double last_step2 = 0.0;
@@ -343,19 +361,7 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
       int32_t row_gx = 0, row_gy = 0, row_e = 0;
       int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
       for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
-        const int ix = X >> kPosBits;
-        const int iy = Y >> kPosBits;
-        const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
-        const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
-        const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
-        const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
-        const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> kWeightBits;
-        const int32_t w11 = kOne - w00 - w01 - w10;
-        const uint8_t* r0 = image.row(iy) + ix;
-        const uint8_t* r1 = r0 + image.stride;
-        const int32_t sample =
-            (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
-        const int32_t e = sample - t[u];
+        const int32_t e = sampleAt16(image, X, Y) - t[u];
         const int32_t ge_x = sx[u] * e;
         const int32_t ge_y = sy[u] * e;
         row_gx += ge_x;
@@ -436,11 +442,6 @@ double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, dou
     }
   }
   const int16_t* T = value_.data() + patchIndex(slot, 0);
-  constexpr int kPosBits = 16;
-  constexpr int kOne = 1 << kWeightBits;
-  constexpr int kShift = kWeightBits - kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
-  constexpr double kPosOne = static_cast<double>(1 << kPosBits);
   const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
   const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
   int64_t s_e = 0, s_sq = 0;
@@ -450,19 +451,7 @@ double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, dou
     auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
     const int16_t* t = T + v * tstride_;
     for (int u = half_ - r; u <= half_ + r; ++u, X += step_x, Y += step_y) {
-      const int ix = X >> kPosBits;
-      const int iy = Y >> kPosBits;
-      const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
-      const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - kWeightBits);
-      const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
-      const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> kWeightBits;
-      const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> kWeightBits;
-      const int32_t w11 = kOne - w00 - w01 - w10;
-      const uint8_t* r0 = image.row(iy) + ix;
-      const uint8_t* r1 = r0 + image.stride;
-      const int32_t sample =
-          (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
-      const int32_t e = sample - t[u];
+      const int32_t e = sampleAt16(image, X, Y) - t[u];
       s_e += e;
       s_sq += e * e;
     }

@@ -22,16 +22,11 @@ using epitrack::device::applyConfigValue;
 using epitrack::device::DeviceConfig;
 using epitrack::device::validateConfig;
 using epitrack::test::binaryPath;
+using epitrack::test::readWholeFile;
 using epitrack::test::run;
 using epitrack::test::TempDir;
 
 namespace {
-
-std::string readAll(const std::string& path) {
-  std::string text, error;
-  epitrack::hal::readTextFile(path, text, error);
-  return text;
-}
 
 void writeText(const std::string& path, const std::string& text) {
   std::FILE* f = std::fopen(path.c_str(), "w");
@@ -127,7 +122,7 @@ TEST_CASE("epitrack-device prints one pose line per frame and a final statistics
               " 2>/dev/null") == 0);
   std::vector<epitrack::test::DeviceLine> lines;
   std::string summary;
-  epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
   REQUIRE(lines.size() == 50);
   int tracking = 0;
   for (std::size_t i = 0; i < lines.size(); ++i) {
@@ -154,7 +149,7 @@ TEST_CASE("epitrack-device prints one pose line per frame and a final statistics
   REQUIRE(run(device() + " --source " + clip + "/frames --intrinsics " + clip +
               "/intrinsics.txt --max-frames 5 > " + stdout_file + " 2>/dev/null") == 0);
   lines.clear();
-  epitrack::test::parseDeviceOutput(readAll(stdout_file), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(stdout_file), lines, summary);
   CHECK(lines.size() == 5);
 }
 
@@ -167,7 +162,7 @@ TEST_CASE("epitrack-device --realtime drops frames it cannot keep up with", "[de
               "/intrinsics.txt --realtime --set fps=2000 --poses " + poses + " 2>/dev/null") == 0);
   std::vector<epitrack::test::DeviceLine> lines;
   std::string summary;
-  epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
   const double dropped = epitrack::test::jsonNumberAfter(summary, "dropped", -1);
   CHECK(dropped > 0);
   CHECK(static_cast<double>(lines.size()) + dropped == 60);
@@ -177,7 +172,7 @@ TEST_CASE("epitrack-device --realtime drops frames it cannot keep up with", "[de
               "/intrinsics.txt --realtime --set fps=4 --max-frames 8 --poses " + poses +
               " 2>/dev/null") == 0);
   lines.clear();
-  epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
   CHECK(lines.size() == 8);
   CHECK(epitrack::test::jsonNumberAfter(summary, "dropped", -1) == 0);
 }
@@ -201,7 +196,7 @@ TEST_CASE("epitrack-device stops cleanly on SIGINT and SIGTERM", "[device][cli]"
     // Signal once a few pose lines are out (the handlers are installed before the first frame),
     // however slow a loaded machine makes the start.
     for (int waited_ms = 0; waited_ms < 20000; waited_ms += 20) {
-      const std::string so_far = readAll(poses);
+      const std::string so_far = readWholeFile(poses);
       if (std::count(so_far.begin(), so_far.end(), '\n') >= 4) break;
       ::usleep(20 * 1000);
     }
@@ -212,7 +207,7 @@ TEST_CASE("epitrack-device stops cleanly on SIGINT and SIGTERM", "[device][cli]"
     CHECK(WEXITSTATUS(status) == 0);
     std::vector<epitrack::test::DeviceLine> lines;
     std::string summary;
-    epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+    epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
     CHECK(lines.size() > 3);
     CHECK(lines.size() < 60);
     CHECK(epitrack::test::jsonNumberAfter(summary, "frames", -1) ==
@@ -236,8 +231,8 @@ TEST_CASE("epitrack-device --record writes the frames; replaying them gives the 
               " 2>/dev/null") == 0);
   std::vector<epitrack::test::DeviceLine> a, b;
   std::string summary_a, summary_b;
-  epitrack::test::parseDeviceOutput(readAll(live), a, summary_a);
-  epitrack::test::parseDeviceOutput(readAll(replay), b, summary_b);
+  epitrack::test::parseDeviceOutput(readWholeFile(live), a, summary_a);
+  epitrack::test::parseDeviceOutput(readWholeFile(replay), b, summary_b);
   REQUIRE(a.size() == 40);
   REQUIRE(b.size() == a.size());
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -252,7 +247,7 @@ TEST_CASE("epitrack-device --record writes the frames; replaying them gives the 
               " --poses " + live + " 2>/dev/null") == 0);
   REQUIRE(run(device() + " --source " + mjpeg + args + " --poses " + replay + " 2>/dev/null") == 0);
   b.clear();
-  epitrack::test::parseDeviceOutput(readAll(replay), b, summary_b);
+  epitrack::test::parseDeviceOutput(readWholeFile(replay), b, summary_b);
   CHECK(b.size() == 40);
   CHECK(epitrack::test::jsonNumberAfter(summary_b, "tracked", -1) > 20);
   // An unwritable recording target named on the command line is refused before the first frame

@@ -15,16 +15,11 @@
 // truth, must be within 2x the offline solver's ATE (epitrack-solve --intrinsics on the same clip).
 
 using epitrack::test::binaryPath;
+using epitrack::test::readWholeFile;
 using epitrack::test::run;
 using epitrack::test::TempDir;
 
 namespace {
-
-std::string readAll(const std::string& path) {
-  std::string text, error;
-  epitrack::hal::readTextFile(path, text, error);
-  return text;
-}
 
 epitrack::eval::TrajectoryMetrics evaluate(const std::vector<epitrack::hal::TrajectoryEntry>& gt,
                                            const std::vector<epitrack::hal::TrajectoryEntry>& est) {
@@ -52,7 +47,7 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
               " 2>/dev/null") == 0);
   std::vector<epitrack::test::DeviceLine> lines;
   std::string summary;
-  epitrack::test::parseDeviceOutput(readAll(poses), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
   REQUIRE(lines.size() == gt.size());
   REQUIRE_FALSE(summary.empty());
   std::size_t first_tracking = lines.size();
@@ -98,7 +93,7 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
   REQUIRE(run(binaryPath("firmware_like/epitrack-device") + " --source " + clip +
               "/frames --poses " + sc_poses + " 2>/dev/null") == 0);
   lines.clear();
-  epitrack::test::parseDeviceOutput(readAll(sc_poses), lines, summary);
+  epitrack::test::parseDeviceOutput(readWholeFile(sc_poses), lines, summary);
   REQUIRE(lines.size() == gt.size());
   CHECK(summary.find("\"focal_source\": \"self-calibrated\"") != std::string::npos);
   epitrack::CameraIntrinsics K;

@@ -18,6 +18,8 @@
 #include <string>
 #include <thread>
 
+#include "tests/support/test_support.hpp"
+
 namespace epitrack::test {
 
 /// `text` quoted for /bin/sh (single quotes).
@@ -30,13 +32,6 @@ inline std::string shellQuote(const std::string& text) {
       q += c;
   }
   return q + "'";
-}
-
-inline std::string readWholeFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 /// Exit status and captured output of one command.

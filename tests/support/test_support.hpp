@@ -6,7 +6,10 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <limits>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include <unistd.h>
@@ -71,6 +74,32 @@ inline int run(const std::string& command) {
   const int rc = std::system(command.c_str());
   if (rc == -1 || !WIFEXITED(rc)) return -1;
   return WEXITSTATUS(rc);
+}
+
+/// The whole file as text; "" when it cannot be read.
+inline std::string readWholeFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// The string value of the first field named `key` in a JSON text such as summary.json ("" when
+/// absent). Enough for the flat files the commands write; not a JSON parser.
+inline std::string jsonString(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\"");
+  if (at == std::string::npos) return {};
+  const auto q1 = json.find('"', json.find(':', at) + 1);
+  if (q1 == std::string::npos) return {};
+  const auto q2 = json.find('"', q1 + 1);
+  return json.substr(q1 + 1, q2 - q1 - 1);
+}
+
+/// The numeric value of the first field named `key`; NaN when absent, so any comparison fails.
+inline double jsonNumber(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\"");
+  if (at == std::string::npos) return std::numeric_limits<double>::quiet_NaN();
+  return std::strtod(json.c_str() + json.find(':', at) + 1, nullptr);
 }
 
 /// Fills an image with seeded uniform random bytes.

@@ -18,30 +18,13 @@
 
 using epitrack::Image;
 using epitrack::test::binaryPath;
+using epitrack::test::jsonNumber;
+using epitrack::test::jsonString;
+using epitrack::test::readWholeFile;
 using epitrack::test::run;
 using epitrack::test::TempDir;
 
 namespace {
-
-std::string readAll(const std::string& path) {
-  std::string text, error;
-  epitrack::hal::readTextFile(path, text, error);
-  return text;
-}
-
-std::string jsonString(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\"");
-  if (at == std::string::npos) return {};
-  const auto q1 = json.find('"', json.find(':', at) + 1);
-  const auto q2 = json.find('"', q1 + 1);
-  return json.substr(q1 + 1, q2 - q1 - 1);
-}
-
-double jsonNumber(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\"");
-  if (at == std::string::npos) return -1e300;
-  return std::strtod(json.c_str() + json.find(':', at) + 1, nullptr);
-}
 
 std::string synth(const TempDir& dir, const std::string& name, const std::string& args) {
   const std::string clip = dir.file(name);
@@ -70,12 +53,12 @@ Outcome solve(const TempDir& dir, const std::string& input, const std::string& a
   Outcome o;
   o.exit_code = run(binaryPath("tools/solve/epitrack-solve") + " " + input + " --out " + out +
                     " --quiet " + args + " 2>" + out + ".err");
-  o.summary = readAll(out + "/summary.json");
+  o.summary = readWholeFile(out + "/summary.json");
   o.status = jsonString(o.summary, "status");
-  INFO("stderr: " << readAll(out + ".err") << "\nsummary: " << o.summary.substr(0, 400));
+  INFO("stderr: " << readWholeFile(out + ".err") << "\nsummary: " << o.summary.substr(0, 400));
   for (const char* bad : {": nan", ": -nan", ": inf", ": -inf", ": NaN"})
     CHECK(o.summary.find(bad) == std::string::npos);
-  const std::string cams = readAll(out + "/cameras.tum");
+  const std::string cams = readWholeFile(out + "/cameras.tum");
   CHECK(cams.find("nan") == std::string::npos);
   CHECK(o.exit_code >= 0);
   CHECK(o.exit_code <= 2);
@@ -220,5 +203,5 @@ TEST_CASE("A frame size beyond the memory limit is refused up front", "[solve][d
   const std::string err = dir.file("big.err");
   CHECK(run(binaryPath("tools/solve/epitrack-solve") + " " + path + " --out " + out +
             " --quiet --max-memory 64 2>" + err) == 1);
-  CHECK(readAll(err).find("above the limit of 64 MiB") != std::string::npos);
+  CHECK(readWholeFile(err).find("above the limit of 64 MiB") != std::string::npos);
 }

@@ -22,6 +22,8 @@
 namespace {
 
 using epitrack::test::binaryPath;
+using epitrack::test::jsonNumber;
+using epitrack::test::jsonString;
 using epitrack::test::readWholeFile;
 using epitrack::test::shellQuote;
 using epitrack::test::SpawnedCommand;
@@ -78,22 +80,6 @@ std::vector<std::string> filesBelow(const std::string& dir) {
 bool anyTemporary(const std::vector<std::string>& files) {
   return std::any_of(files.begin(), files.end(),
                      [](const std::string& f) { return f.find(".tmp") != std::string::npos; });
-}
-
-// The value of a top-level string field of summary.json ("" when absent).
-std::string jsonString(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\": \"";
-  const auto p = json.find(k);
-  if (p == std::string::npos) return {};
-  const auto e = json.find('"', p + k.size());
-  return json.substr(p + k.size(), e - p - k.size());
-}
-
-double jsonNumber(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\": ";
-  const auto p = json.find(k);
-  if (p == std::string::npos) return -1.0;
-  return std::strtod(json.c_str() + p + k.size(), nullptr);
 }
 
 // The "files" array of summary.json.
@@ -161,6 +147,21 @@ void checkInterruptedSolve(const std::string& out, const std::string& signal_nam
   CHECK(listed == present);
 }
 
+// Feeds `command` the clip's header and first `frames` frames, then sends `sig` and closes its
+// input. Each write returns once the command has read all but a pipe buffer (< 1 frame) of it, so
+// the command is then working on frame `frames - 1` or later, or blocked reading the next; the
+// signal is delivered before the blocked read ends. Returns the exit code.
+int interruptAfterFrames(SpawnedCommand& command, const Y4mClip& clip, int frames, int sig) {
+  REQUIRE(command.started());
+  REQUIRE(command.writeInput(clip.header.data(), clip.header.size()));
+  for (int f = 0; f < frames; ++f)
+    REQUIRE(command.writeInput(clip.frames[static_cast<std::size_t>(f)].data(),
+                               clip.frames[static_cast<std::size_t>(f)].size()));
+  REQUIRE(command.signal(sig));
+  command.closeInput();
+  return command.wait();
+}
+
 }  // namespace
 
 TEST_CASE("SIGINT while epitrack-solve tracks leaves only a summary.json saying so",
@@ -171,17 +172,8 @@ TEST_CASE("SIGINT while epitrack-solve tracks leaves only a summary.json saying 
   SpawnedCommand solve(
       binaryPath("tools/solve/epitrack-solve") + " - --out " + shellQuote(out) + " --quiet",
       dir.file("stderr.txt"));
-  REQUIRE(solve.started());
-  REQUIRE(solve.writeInput(clip.header.data(), clip.header.size()));
-  // Each write returns once the solve has read all but a pipe buffer (< 1 frame) of it: after 30
-  // frames it is tracking frame 29 or later, and blocked reading the next.
   constexpr int kFramesSent = 30;
-  for (int f = 0; f < kFramesSent; ++f)
-    REQUIRE(solve.writeInput(clip.frames[static_cast<std::size_t>(f)].data(),
-                             clip.frames[static_cast<std::size_t>(f)].size()));
-  REQUIRE(solve.signal(SIGINT));
-  solve.closeInput();  // the blocked read ends; the signal was delivered before it
-  const int exit_code = solve.wait();
+  const int exit_code = interruptAfterFrames(solve, clip, kFramesSent, SIGINT);
   INFO(solve.stderrText());
   CHECK(exit_code == 130);
   checkInterruptedSolve(out, "SIGINT");
@@ -275,15 +267,8 @@ TEST_CASE("SIGINT while epitrack-track tracks writes tracks.csv complete for the
   SpawnedCommand track(
       binaryPath("tools/track/epitrack-track") + " - --out " + shellQuote(csv) + " --quiet",
       dir.file("stderr.txt"));
-  REQUIRE(track.started());
-  REQUIRE(track.writeInput(clip.header.data(), clip.header.size()));
   constexpr int kFramesSent = 25;
-  for (int f = 0; f < kFramesSent; ++f)
-    REQUIRE(track.writeInput(clip.frames[static_cast<std::size_t>(f)].data(),
-                             clip.frames[static_cast<std::size_t>(f)].size()));
-  REQUIRE(track.signal(SIGINT));
-  track.closeInput();
-  const int exit_code = track.wait();
+  const int exit_code = interruptAfterFrames(track, clip, kFramesSent, SIGINT);
   INFO(track.stderrText());
   CHECK(exit_code == 130);
   CHECK(filesBelow(dir.path()) == std::vector<std::string>{"stderr.txt", "tracks.csv"});

@@ -10,24 +10,14 @@
 // epitrack-solve end to end on rendered synthetic clips: tracking, solve, exports, rendering.
 
 using epitrack::test::binaryPath;
+using epitrack::test::jsonNumber;
+using epitrack::test::readWholeFile;
 using epitrack::test::run;
 using epitrack::test::TempDir;
 
 namespace {
 
 bool exists(const std::string& path) { return ::access(path.c_str(), R_OK) == 0; }
-
-std::string readAll(const std::string& path) {
-  std::string text, error;
-  epitrack::hal::readTextFile(path, text, error);
-  return text;
-}
-
-double jsonNumber(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\"");
-  if (at == std::string::npos) return -1e300;
-  return std::strtod(json.c_str() + json.find(':', at) + 1, nullptr);
-}
 
 epitrack::eval::TrajectoryMetrics evaluate(const std::string& gt, const std::string& est) {
   std::vector<epitrack::hal::TrajectoryEntry> g, e;
@@ -55,7 +45,7 @@ TEST_CASE("epitrack-solve solves a rendered orbit and writes every output", "[so
         "colmap/images.txt", "colmap/points3D.txt", "blender_camera.py", "camera.chan",
         "augmented/000000.jpg", "augmented/000119.jpg", "augmented.avi"})
     CHECK(exists(out + "/" + f));
-  const std::string summary = readAll(out + "/summary.json");
+  const std::string summary = readWholeFile(out + "/summary.json");
   CHECK(summary.find("\"status\": \"ok\"") != std::string::npos);
   CHECK(jsonNumber(summary, "solved_frames") == 120);
   CHECK(jsonNumber(summary, "focal_px") == Approx(600.0));
@@ -75,7 +65,7 @@ TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli]") {
   const std::string out = dir.file("out");
   REQUIRE(run(binaryPath("tools/solve/epitrack-solve") + " " + clip + "/frames --out " + out +
               " --quiet") == 0);
-  const std::string summary = readAll(out + "/summary.json");
+  const std::string summary = readWholeFile(out + "/summary.json");
   CHECK(summary.find("\"focal_source\": \"self-calibrated\"") != std::string::npos);
   INFO(summary.substr(0, 600));
   CHECK(std::abs(jsonNumber(summary, "focal_px") / 600.0 - 1.0) < 0.01);

@@ -12,6 +12,7 @@
 #include "hal/io/image_codec.hpp"
 #include "hal/io/text_formats.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/well_conditioned.hpp"
 #include "tools/synth/portable_math.hpp"
 
 namespace synth = epitrack::synth;
@@ -53,29 +54,6 @@ bool refineCorner(const Image<uint8_t>& img, Eigen::Vector2d q, int radius, Eige
   }
   out = q;
   return true;
-}
-
-// A corner is well conditioned for sub-pixel localisation when its texture cells are large on
-// screen and its two edge directions are far from parallel (shallow floor corners are not: their
-// error along the edges is large for any detector). Returns false otherwise.
-bool wellConditioned(const synth::SyntheticSequence& seq, const synth::Landmark3d& l, int frame) {
-  const synth::TexturedQuad& q = seq.scene().quads[static_cast<std::size_t>(l.quad)];
-  const synth::Pose p = seq.pose(frame);
-  Eigen::Vector2d c;
-  if (!seq.camera().project(p.R_wc.transpose() * (l.position - p.t_wc), c)) return false;
-  Eigen::Vector2d dir[2];
-  int k = 0;
-  for (const Eigen::Vector3d& d : {q.axis_u, q.axis_v}) {
-    for (const double s : {-1.0, 1.0}) {
-      Eigen::Vector2d n;
-      if (!seq.camera().project(p.R_wc.transpose() * (l.position + s * q.cell * d - p.t_wc), n))
-        return false;
-      if ((n - c).norm() < 9.0) return false;
-      if (s > 0) dir[k] = (n - c).normalized();
-    }
-    ++k;
-  }
-  return std::abs(dir[0].x() * dir[1].y() - dir[0].y() * dir[1].x()) > 0.7;  // > 45 degrees apart
 }
 
 // An independent reference renderer: brute-force ray casting against every quad with n x n point
@@ -232,7 +210,8 @@ TEST_CASE("The anti-aliased renderer matches a brute-force supersampled referenc
     seq.visibleLandmarks(20, obs);
     std::vector<double> diffs;
     for (const auto& ob : obs) {
-      if (!wellConditioned(seq, seq.scene().landmarks[static_cast<std::size_t>(ob.id)], 20))
+      if (!epitrack::test::wellConditioned(
+              seq, seq.scene().landmarks[static_cast<std::size_t>(ob.id)], 20))
         continue;
       const int cx = static_cast<int>(std::lround(ob.x));
       const int cy = static_cast<int>(std::lround(ob.y));
@@ -255,7 +234,8 @@ TEST_CASE("The anti-aliased renderer matches a brute-force supersampled referenc
       for (int x = 0; x < 240; ++x) ref8(x, y) = static_cast<uint8_t>(std::lround(ref(x, y)));
     std::vector<double> shifts;
     for (const auto& ob : obs) {
-      if (!wellConditioned(seq, seq.scene().landmarks[static_cast<std::size_t>(ob.id)], 20))
+      if (!epitrack::test::wellConditioned(
+              seq, seq.scene().landmarks[static_cast<std::size_t>(ob.id)], 20))
         continue;
       Eigen::Vector2d a;
       Eigen::Vector2d b;

@@ -6,36 +6,10 @@
 #include <limits>
 #include <set>
 
+#include "tests/support/well_conditioned.hpp"
 #include "tools/synth/random.hpp"
 
 namespace epitrack::test {
-
-namespace {
-
-// As in tests/tools/synth_test.cpp: far, foreshortened corners are poorly conditioned for any
-// detector (their error along the edges is large), so accuracy tables use the others.
-bool wellConditioned(const synth::SyntheticSequence& seq, int landmark_id, int frame) {
-  const synth::Landmark3d& l = seq.scene().landmarks[static_cast<std::size_t>(landmark_id)];
-  const synth::TexturedQuad& q = seq.scene().quads[static_cast<std::size_t>(l.quad)];
-  const synth::Pose p = seq.pose(frame);
-  Eigen::Vector2d c;
-  if (!seq.camera().project(p.R_wc.transpose() * (l.position - p.t_wc), c)) return false;
-  Eigen::Vector2d dir[2];
-  int k = 0;
-  for (const Eigen::Vector3d& d : {q.axis_u, q.axis_v}) {
-    for (const double s : {-1.0, 1.0}) {
-      Eigen::Vector2d n;
-      if (!seq.camera().project(p.R_wc.transpose() * (l.position + s * q.cell * d - p.t_wc), n))
-        return false;
-      if ((n - c).norm() < 9.0) return false;
-      if (s > 0) dir[k] = (n - c).normalized();
-    }
-    ++k;
-  }
-  return std::abs(dir[0].x() * dir[1].y() - dir[0].y() * dir[1].x()) > 0.7;
-}
-
-}  // namespace
 
 RenderedClip renderClip(const synth::SynthOptions& options) {
   RenderedClip clip;
@@ -49,7 +23,9 @@ RenderedClip renderClip(const synth::SynthOptions& options) {
     const auto& lms = clip.landmarks[static_cast<std::size_t>(f)];
     seq.visibleLandmarks(f, clip.landmarks[static_cast<std::size_t>(f)]);
     auto& wc = clip.well_conditioned[static_cast<std::size_t>(f)];
-    for (const auto& l : lms) wc.push_back(wellConditioned(seq, l.id, f) ? 1 : 0);
+    for (const auto& l : lms)
+      wc.push_back(
+          wellConditioned(seq, seq.scene().landmarks[static_cast<std::size_t>(l.id)], f) ? 1 : 0);
   }
   return clip;
 }

@@ -9,12 +9,31 @@
 namespace epitrack::io {
 namespace {
 
-bool isSkippable(const std::string& line) {
-  const auto first = line.find_first_not_of(" \t\r");
-  return first == std::string::npos || line[first] == '#';
-}
+// The lines of a COLMAP text file, numbered from 1 for messages.
+class LineReader {
+ public:
+  explicit LineReader(const std::string& text) : in_(text) {}
+  /// The next line, whatever it holds.
+  bool next(std::string& line) {
+    if (!std::getline(in_, line)) return false;
+    ++number_;
+    return true;
+  }
+  /// The next line that is neither blank nor a '#' comment.
+  bool nextRecord(std::string& line) {
+    while (next(line)) {
+      const auto first = line.find_first_not_of(" \t\r");
+      if (first != std::string::npos && line[first] != '#') return true;
+    }
+    return false;
+  }
+  /// "line N: ", N the line last read.
+  [[nodiscard]] std::string where() const { return "line " + std::to_string(number_) + ": "; }
 
-std::string where(int line_number) { return "line " + std::to_string(line_number) + ": "; }
+ private:
+  std::istringstream in_;
+  int number_ = 0;
+};
 
 int expectedParams(const std::string& model) {
   if (model == "SIMPLE_PINHOLE") return 3;
@@ -29,22 +48,19 @@ int expectedParams(const std::string& model) {
 bool parseColmapCameras(const std::string& text, std::vector<ColmapCamera>& cameras,
                         std::string& error) {
   cameras.clear();
-  std::istringstream in(text);
+  LineReader lines(text);
   std::string line;
-  int n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    if (isSkippable(line)) continue;
+  while (lines.nextRecord(line)) {
     std::istringstream fields(line);
     ColmapCamera c;
     if (!(fields >> c.id >> c.model >> c.width >> c.height)) {
-      error = where(n) + "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]";
+      error = lines.where() + "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]";
       return false;
     }
     double p = 0.0;
     while (fields >> p) c.params.push_back(p);
     if (!fields.eof()) {
-      error = where(n) + "bad camera parameter";
+      error = lines.where() + "bad camera parameter";
       return false;
     }
     cameras.push_back(c);
@@ -55,38 +71,34 @@ bool parseColmapCameras(const std::string& text, std::vector<ColmapCamera>& came
 bool parseColmapImages(const std::string& text, std::vector<ColmapImage>& images,
                        std::string& error) {
   images.clear();
-  std::istringstream in(text);
+  LineReader lines(text);
   std::string line;
-  int n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    if (isSkippable(line)) continue;
+  while (lines.nextRecord(line)) {
     std::istringstream fields(line);
     ColmapImage im;
     double qw = 0, qx = 0, qy = 0, qz = 0;
     if (!(fields >> im.id >> qw >> qx >> qy >> qz >> im.t_cw.x() >> im.t_cw.y() >> im.t_cw.z() >>
           im.camera_id >> im.name)) {
-      error = where(n) + "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME";
+      error = lines.where() + "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME";
       return false;
     }
     im.q_cw = Eigen::Quaterniond(qw, qx, qy, qz);
     // The next line (possibly empty) holds the 2D points.
-    if (!std::getline(in, line)) {
-      error = where(n) + "missing POINTS2D line";
+    if (!lines.next(line)) {
+      error = lines.where() + "missing POINTS2D line";
       return false;
     }
-    ++n;
     std::istringstream pts(line);
     ColmapPoint2D p;
     while (pts >> p.x) {
       if (!(pts >> p.y >> p.point3d_id)) {
-        error = where(n) + "POINTS2D must be triples X Y POINT3D_ID";
+        error = lines.where() + "POINTS2D must be triples X Y POINT3D_ID";
         return false;
       }
       im.points.push_back(p);
     }
     if (!pts.eof()) {
-      error = where(n) + "bad POINTS2D value";
+      error = lines.where() + "bad POINTS2D value";
       return false;
     }
     images.push_back(im);
@@ -97,29 +109,26 @@ bool parseColmapImages(const std::string& text, std::vector<ColmapImage>& images
 bool parseColmapPoints3D(const std::string& text, std::vector<ColmapPoint3D>& points,
                          std::string& error) {
   points.clear();
-  std::istringstream in(text);
+  LineReader lines(text);
   std::string line;
-  int n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    if (isSkippable(line)) continue;
+  while (lines.nextRecord(line)) {
     std::istringstream fields(line);
     ColmapPoint3D p;
     if (!(fields >> p.id >> p.X.x() >> p.X.y() >> p.X.z() >> p.r >> p.g >> p.b >> p.error)) {
-      error = where(n) + "expected POINT3D_ID X Y Z R G B ERROR TRACK[]";
+      error = lines.where() + "expected POINT3D_ID X Y Z R G B ERROR TRACK[]";
       return false;
     }
     int64_t image_id = 0;
     while (fields >> image_id) {
       int idx = 0;
       if (!(fields >> idx)) {
-        error = where(n) + "TRACK must be pairs IMAGE_ID POINT2D_IDX";
+        error = lines.where() + "TRACK must be pairs IMAGE_ID POINT2D_IDX";
         return false;
       }
       p.track.emplace_back(image_id, idx);
     }
     if (!fields.eof()) {
-      error = where(n) + "bad TRACK value";
+      error = lines.where() + "bad TRACK value";
       return false;
     }
     points.push_back(p);

@@ -27,7 +27,13 @@ struct LiveMapOptions {
   int ba_window = 10;      ///< newest keyframes refined at each new keyframe
   int ba_fixed =
       5;  ///< older keyframes joining the adjustment as fixed cameras, spread over the ring
-  int ba_iterations = 6;
+  /// Levenberg-Marquardt iterations per windowed adjustment. Few on purpose: consecutive windows
+  /// overlap (a keyframe is refined by ba_window adjustments), so the map still converges over
+  /// the keyframes, while one adjustment cannot drag the window far along the monocular map's
+  /// weak mode (rotation traded for translation and depth), which the poses already sent cannot
+  /// follow. Measured on 5 rendered orbits and 2 hand-held walks (notes/README-live-accuracy.md):
+  /// 6 iterations gave live/offline ATE ratios up to 4.5, 2 (with young_map_keyframes 8) <= 1.9.
+  int ba_iterations = 2;
   double huber_px = 1.0;
   double reproj_threshold_px = 2.5;      ///< PnP inlier and triangulation acceptance threshold
   int init_min_tracks = 60;              ///< tracks common to the reference frame and the current
@@ -38,7 +44,7 @@ struct LiveMapOptions {
   double min_point_parallax_deg = 1.0;  ///< triangulation: angle between the two rays
   double keyframe_parallax_deg = 0.3;   ///< new keyframe at this median parallax to the last
   int keyframe_max_gap = 8;             ///< or after this many frames
-  int young_map_keyframes = 16;         ///< until the map has this many keyframes ...
+  int young_map_keyframes = 8;          ///< until the map has this many keyframes ...
   int young_map_keyframe_gap = 1;       ///< ... a keyframe every this many frames
   double keyframe_min_tracked = 0.7;  ///< or when inliers fall below this fraction of the last kf's
   int min_pnp_inliers = 15;           ///< fewer: the frame is lost

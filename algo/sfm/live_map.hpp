@@ -31,7 +31,7 @@ struct LiveMapOptions {
   /// overlap (a keyframe is refined by ba_window adjustments), so the map still converges over
   /// the keyframes, while one adjustment cannot drag the window far along the monocular map's
   /// weak mode (rotation traded for translation and depth), which the poses already sent cannot
-  /// follow. Measured on 5 rendered orbits and 2 hand-held walks (notes/README-live-accuracy.md):
+  /// follow. Measured on 5 rendered orbits and 2 hand-held walks (README, device accuracy):
   /// 6 iterations gave live/offline ATE ratios up to 4.5, 2 (with young_map_keyframes 8) <= 1.9.
   int ba_iterations = 2;
   double huber_px = 1.0;

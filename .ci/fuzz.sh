@@ -8,7 +8,7 @@
 #   EPITRACK_FUZZ_TARGETS    targets to run, space-separated (default: all of tests/fuzz/corpus)
 #   EPITRACK_FUZZ_BUILD_DIR  build directory (default build/fuzz)
 #   EPITRACK_FUZZ_RUN_DIR    where grown corpora, logs and crash files go (default BUILD/runs)
-#   EPITRACK_JOBS            parallel build jobs (default 2)
+#   EPITRACK_JOBS            parallel build jobs and targets fuzzed at once (default 2)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${EPITRACK_FUZZ_BUILD_DIR:-$root/build/fuzz}
@@ -29,32 +29,50 @@ cmake --build "$build" -j "$jobs" "${build_targets[@]}"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 
-failed=()
-printf '%-14s %10s %8s %8s %14s  %s\n' target executions cov ft corpus result
-for t in $targets; do
-  bin="$build/tests/fuzz/fuzz_$t"
-  work="$runs/$t"
+# One target: fuzz for the bounded time, then write its table row and "ok"/"FAILED" to files in
+# its run directory (the targets run two at a time, one per core; rows are printed in order).
+fuzz_one() {
+  local t=$1 bin="$build/tests/fuzz/fuzz_$1" work="$runs/$1"
   rm -rf "$work"
   mkdir -p "$work/corpus" "$work/artifacts"
   cp "$root/tests/fuzz/corpus/$t/"* "$work/corpus/"
-  dict=()
+  local dict=()
   if [ -f "$root/tests/fuzz/dict/$t.dict" ]; then dict=(-dict="$root/tests/fuzz/dict/$t.dict"); fi
-  rc=0
+  local rc=0
   "$bin" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
     -artifact_prefix="$work/artifacts/" "${dict[@]}" "$work/corpus" >"$work/log" 2>&1 || rc=$?
   # The last status line: "#N DONE cov: C ft: F corp: U/Sb ..." (or INITED/NEW/REDUCE/pulse).
+  local last execs cov ft corp result=ok
   last=$(grep -E '^#[0-9]+' "$work/log" | tail -n 1 || true)
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/log" | tail -n 1)
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<<"$last")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"$last")
   corp=$(sed -n 's/.* corp: \([0-9]*\/[0-9]*[a-zA-Z]*\).*/\1/p' <<<"$last")
-  result=ok
   if [ "$rc" -ne 0 ] || [ -n "$(ls -A "$work/artifacts")" ] ||
      grep -qE 'runtime error:|ERROR: (Address|Leak|Undefined)Sanitizer|FUZZ_CHECK failed' "$work/log"; then
     result="FAILED (exit $rc)"
-    failed+=("$t")
   fi
-  printf '%-14s %10s %8s %8s %14s  %s\n' "$t" "${execs:-?}" "${cov:-?}" "${ft:-?}" "${corp:-?}" "$result"
+  printf '%-14s %10s %8s %8s %14s  %s\n' "$t" "${execs:-?}" "${cov:-?}" "${ft:-?}" "${corp:-?}" \
+    "$result" >"$work/row"
+  [ "$result" = ok ] && echo ok >"$work/result" || echo FAILED >"$work/result"
+}
+
+running=0
+for t in $targets; do
+  fuzz_one "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+done
+wait
+
+failed=()
+printf '%-14s %10s %8s %8s %14s  %s\n' target executions cov ft corpus result
+for t in $targets; do
+  if [ -f "$runs/$t/row" ]; then cat "$runs/$t/row"; else echo "$t: no result"; fi
+  [ "$(cat "$runs/$t/result" 2>/dev/null)" = ok ] || failed+=("$t")
 done
 
 for t in "${failed[@]}"; do

@@ -5,6 +5,7 @@
 #   EPITRACK_JOBS        parallel jobs (default: number of cores)
 #   EPITRACK_CMAKE_ARGS  extra configure arguments (e.g. -DEPITRACK_CPU_FLAGS_FILE=toolchains/cpu/cortex-a72.cmake)
 #   EPITRACK_CTEST_ARGS  extra ctest arguments for --test (e.g. -L algo)
+#   EPITRACK_BUILD_TARGETS  targets to build, space-separated (default: all)
 # The build is Release with warnings as errors, tests on, the benchmark off (no OpenCV on the target).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -15,7 +16,7 @@ arch=$1; shift
 case "$arch" in
   aarch64) triple=aarch64-linux-gnu; group=cross-aarch64 ;;
   armhf) triple=arm-linux-gnueabihf; group=cross-armhf ;;
-  -h|--help) sed -n '2,8p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  -h|--help) sed -n '2,9p' "${BASH_SOURCE[0]}"; exit 0 ;;
   *) echo "cross.sh: unknown architecture '$arch' (aarch64 or armhf)" >&2; exit 2 ;;
 esac
 build=""
@@ -35,7 +36,9 @@ jobs=${EPITRACK_JOBS:-$(nproc)}
 cmake -S "$root" -B "$build" -DCMAKE_TOOLCHAIN_FILE="$root/toolchains/$triple.cmake" \
   -DCMAKE_BUILD_TYPE=Release -DEPITRACK_WERROR=ON -DEPITRACK_BUILD_TESTS=ON -DEPITRACK_BUILD_BENCH=OFF \
   ${EPITRACK_CMAKE_ARGS:-} >/dev/null
-cmake --build "$build" -j "$jobs"
+targets=()
+for t in ${EPITRACK_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
+cmake --build "$build" -j "$jobs" "${targets[@]}"
 echo "cross.sh: built $triple in $build"
 
 if [ "$run_tests" = 1 ]; then

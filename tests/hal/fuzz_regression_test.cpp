@@ -1,6 +1,6 @@
-// Regression tests of the reader bugs the fuzzers of tests/fuzz found (notes/README-robustness.md),
-// so that the ordinary and the sanitizer builds keep them fixed. The inputs are the crash files
-// kept in the fuzz corpora (tests/fuzz/corpus/TARGET/regression_*).
+// Regression tests of the reader bugs the fuzzers of tests/fuzz found (README, "Bugs found and
+// fixed"), so that the ordinary and the sanitizer builds keep them fixed. The inputs are the crash
+// files kept in the fuzz corpora (tests/fuzz/corpus/TARGET/regression_*).
 #include <catch2/catch.hpp>
 
 #include <cmath>

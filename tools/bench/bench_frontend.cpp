@@ -15,14 +15,9 @@
 #include "algo/tracking/feature_tracker.hpp"
 #include "tools/bench/bench_input.hpp"
 #include "tools/bench/bench_registry.hpp"
+#include "tools/bench/opencv_tracker.hpp"
 #include "tools/common/command_line.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
-
-#ifdef EPITRACK_HAVE_OPENCV
-#include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
-#endif
 
 namespace epitrack::bench {
 namespace {
@@ -206,58 +201,21 @@ int runFrontend(int argc, const char* const* argv) {
   cv::setNumThreads(1);
   std::vector<double> cv_ms, cv_lk_ms, cv_det_call_ms;
   TrackScorer cv_score(truth_ptr);
-  const cv::Size win(o.window, o.window);
-  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
   for (int r = 0; r < repeat; ++r) {
-    std::vector<cv::Mat> prev_pyr, next_pyr;
-    std::vector<cv::Point2f> pts, next_pts;
-    std::vector<int32_t> ids;
-    std::vector<uchar> status;
-    std::vector<float> err;
-    int32_t next_id = 0;
-    cv::Mat mask;
+    OpenCvTracker cv_tracker(w, h, o);
     for (std::size_t f = 0; f < frames.size(); ++f) {
-      const cv::Mat img(h, w, CV_8UC1, const_cast<uint8_t*>(frames[f].row(0)),
-                        static_cast<std::size_t>(frames[f].stride()));
+      const cv::Mat img = OpenCvTracker::wrap(frames[f]);
       CpuStopwatch sw;
-      cv::buildOpticalFlowPyramid(img, next_pyr, win, o.levels);
-      if (!pts.empty()) {
-        cv::calcOpticalFlowPyrLK(prev_pyr, next_pyr, pts, next_pts, status, err, win, o.levels,
-                                 crit);
-        std::size_t k = 0;
-        for (std::size_t i = 0; i < pts.size(); ++i) {
-          const cv::Point2f& p = next_pts[i];
-          if (status[i] == 0 || p.x < 0 || p.y < 0 || p.x > static_cast<float>(w - 1) ||
-              p.y > static_cast<float>(h - 1))
-            continue;
-          next_pts[k] = p;
-          ids[k] = ids[i];
-          ++k;
-        }
-        next_pts.resize(k);
-        ids.resize(k);
-        pts.swap(next_pts);
-      }
-      const double lk = sw.ms();
-      cv_lk_ms.push_back(lk);
-      if (static_cast<double>(pts.size()) < o.redetect_fraction * o.max_features) {
-        CpuStopwatch ds;
-        mask.create(h, w, CV_8UC1);
-        mask.setTo(255);
-        for (const auto& p : pts) cv::circle(mask, p, static_cast<int>(o.min_distance), 0, -1);
-        std::vector<cv::Point2f> corners;
-        cv::goodFeaturesToTrack(img, corners, o.max_features - static_cast<int>(pts.size()), 0.01,
-                                o.min_distance, mask, 3, false);
-        for (const auto& c : corners) {
-          pts.push_back(c);
-          ids.push_back(next_id++);
-        }
-        cv_det_call_ms.push_back(ds.ms());
-      }
-      std::swap(prev_pyr, next_pyr);
+      cv_tracker.flow(img);
+      cv_lk_ms.push_back(sw.ms());
+      CpuStopwatch ds;
+      if (cv_tracker.redetect(img)) cv_det_call_ms.push_back(ds.ms());
+      cv_tracker.endFrame();
       cv_ms.push_back(sw.ms());
       if (r == 0) {
         obs.clear();
+        const auto& pts = cv_tracker.points();
+        const auto& ids = cv_tracker.ids();
         for (std::size_t i = 0; i < pts.size(); ++i) obs.push_back({ids[i], pts[i].x, pts[i].y});
         cv_score.add(static_cast<int>(f), obs);
       }

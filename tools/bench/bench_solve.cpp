@@ -20,6 +20,7 @@
 #include "algo/tracking/feature_tracker.hpp"
 #include "tools/bench/bench_input.hpp"
 #include "tools/bench/bench_registry.hpp"
+#include "tools/bench/opencv_tracker.hpp"
 #include "tools/common/command_line.hpp"
 #include "tools/eval/trajectory_metrics.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
@@ -28,7 +29,6 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 #endif
 
 namespace epitrack::bench {
@@ -161,49 +161,14 @@ SolveRun solveOpenCv(const std::vector<Image<uint8_t>>& frames, const FeatureTra
   double t0 = cpuSeconds();
   std::vector<std::map<int, cv::Point2f>> obs(n);
   {
-    const cv::Size win(o.window, o.window);
-    const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
-    std::vector<cv::Mat> prev_pyr, next_pyr;
-    std::vector<cv::Point2f> pts, next_pts;
-    std::vector<int> ids;
-    std::vector<uchar> status;
-    std::vector<float> err;
-    int next_id = 0;
-    cv::Mat mask;
+    OpenCvTracker tracker(w, h, o);
     for (std::size_t f = 0; f < n; ++f) {
-      const cv::Mat img(h, w, CV_8UC1, const_cast<uint8_t*>(frames[f].row(0)),
-                        static_cast<std::size_t>(frames[f].stride()));
-      cv::buildOpticalFlowPyramid(img, next_pyr, win, o.levels);
-      if (!pts.empty()) {
-        cv::calcOpticalFlowPyrLK(prev_pyr, next_pyr, pts, next_pts, status, err, win, o.levels,
-                                 crit);
-        std::size_t k = 0;
-        for (std::size_t i = 0; i < pts.size(); ++i) {
-          const cv::Point2f& p = next_pts[i];
-          if (status[i] == 0 || p.x < 0 || p.y < 0 || p.x > static_cast<float>(w - 1) ||
-              p.y > static_cast<float>(h - 1))
-            continue;
-          next_pts[k] = p;
-          ids[k++] = ids[i];
-        }
-        next_pts.resize(k);
-        ids.resize(k);
-        pts.swap(next_pts);
-      }
-      if (static_cast<double>(pts.size()) < o.redetect_fraction * o.max_features) {
-        mask.create(h, w, CV_8UC1);
-        mask.setTo(255);
-        for (const auto& p : pts) cv::circle(mask, p, static_cast<int>(o.min_distance), 0, -1);
-        std::vector<cv::Point2f> corners;
-        cv::goodFeaturesToTrack(img, corners, o.max_features - static_cast<int>(pts.size()), 0.01,
-                                o.min_distance, mask, 3, false);
-        for (const auto& c : corners) {
-          pts.push_back(c);
-          ids.push_back(next_id++);
-        }
-      }
-      for (std::size_t i = 0; i < pts.size(); ++i) obs[f][ids[i]] = pts[i];
-      std::swap(prev_pyr, next_pyr);
+      const cv::Mat img = OpenCvTracker::wrap(frames[f]);
+      tracker.flow(img);
+      tracker.redetect(img);
+      const auto& pts = tracker.points();
+      for (std::size_t i = 0; i < pts.size(); ++i) obs[f][tracker.ids()[i]] = pts[i];
+      tracker.endFrame();
     }
   }
   double t1 = cpuSeconds();

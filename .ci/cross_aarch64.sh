@@ -23,11 +23,11 @@ cross=$root/build/cross-aarch64
 # test stage. Only the programs and the test binaries of these labels are built (the other test
 # binaries would be a third of the build); ctest ignores the unbuilt ones under -L.
 # --timeout: a test that hangs under emulation fails the stage instead of stalling it.
-long_sweeps='^(The.solve.does.not.depend.on.small.shifts|Exact.orbit|Orbit.with.a.wandering.target|Dolly..forward.motion.|Handheld.with.the.focal.unknown)'
+source "$root/.ci/slow_tests.sh"
 EPITRACK_BUILD_TARGETS="epitrack-device epitrack-solve epitrack-synth epitrack-track epitrack-record
   epitrack-eval epitrack_algo_tests epitrack_alloc_tests epitrack_geometry_tests epitrack_hal_tests
   epitrack_hal_alloc_tests epitrack_sfm_tests" \
-  EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -E $long_sweeps ${EPITRACK_CTEST_ARGS:-}" \
+  EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -E $solver_sweeps ${EPITRACK_CTEST_ARGS:-}" \
   bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest
@@ -35,9 +35,11 @@ rm -rf "$clip"
 "$native/tools/synth/epitrack-synth" --scene handheld --frames 60 --size 704x576 --noise 2 --seed 11 \
   --out "$clip" >/dev/null
 "$native/tools/track/epitrack-track" "$clip/frames" --out "$clip/tracks-x86_64.csv" --quiet
-# The loader and the libc of the cross toolchain together (toolchains/linux-cross-common.cmake).
-qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=/usr/aarch64-linux-gnu/lib:/usr/lib/aarch64-linux-gnu \
-  "$cross/tools/track/epitrack-track" "$clip/frames" \
+# The toolchain's emulator command (qemu with the cross loader and its own libc, see
+# toolchains/linux-cross-common.cmake), as ctest uses it.
+emulator=$(sed -n 's/^EPITRACK_TARGET_EMULATOR:INTERNAL=//p' "$cross/CMakeCache.txt" | tr ';' ' ')
+[ -n "$emulator" ] || { echo "cross_aarch64: no emulator in $cross/CMakeCache.txt" >&2; exit 1; }
+$emulator "$cross/tools/track/epitrack-track" "$clip/frames" \
   --out "$clip/tracks-aarch64.csv" --quiet
 a=$(sha256sum <"$clip/tracks-x86_64.csv" | cut -d' ' -f1)
 b=$(sha256sum <"$clip/tracks-aarch64.csv" | cut -d' ' -f1)

@@ -29,8 +29,8 @@ cmake --build "$build" -j "$jobs" "${build_targets[@]}"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 
-# One target: fuzz for the bounded time, then write its table row and "ok"/"FAILED" to files in
-# its run directory (the targets run two at a time, one per core; rows are printed in order).
+# One target: fuzz for the bounded time, then write its table row, ending in "ok" or "FAILED ...",
+# to its run directory (the targets run two at a time, one per core; rows are printed in order).
 fuzz_one() {
   local t=$1 bin="$build/tests/fuzz/fuzz_$1" work="$runs/$1"
   rm -rf "$work"
@@ -54,7 +54,6 @@ fuzz_one() {
   fi
   printf '%-14s %10s %8s %8s %14s  %s\n' "$t" "${execs:-?}" "${cov:-?}" "${ft:-?}" "${corp:-?}" \
     "$result" >"$work/row"
-  [ "$result" = ok ] && echo ok >"$work/result" || echo FAILED >"$work/result"
 }
 
 running=0
@@ -71,8 +70,9 @@ wait
 failed=()
 printf '%-14s %10s %8s %8s %14s  %s\n' target executions cov ft corpus result
 for t in $targets; do
-  if [ -f "$runs/$t/row" ]; then cat "$runs/$t/row"; else echo "$t: no result"; fi
-  [ "$(cat "$runs/$t/result" 2>/dev/null)" = ok ] || failed+=("$t")
+  row=$(cat "$runs/$t/row" 2>/dev/null || echo "$t: no result")
+  echo "$row"
+  [[ "$row" == *"  ok" ]] || failed+=("$t")
 done
 
 for t in "${failed[@]}"; do

@@ -31,9 +31,10 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 # solver tests and one full `epitrack-solve` run.
 exclude='^install_and_find_package$'
 if [ "${EPITRACK_SANITIZER_FULL:-0}" != 1 ]; then
-  exclude+='|does not depend on small shifts|noise-free 704x576 orbit meets|self-calibrates a handheld clip'
-  exclude+='|^Exact orbit|wandering target|brute-force supersampled|^Handheld with the focal unknown'
-  exclude+='|^Dolly \(forward motion\)|^Orbit with the focal unknown'
+  source "$root/.ci/slow_tests.sh"
+  exclude+="|$solver_sweeps"
+  exclude+='|noise-free 704x576 orbit meets|self-calibrates a handheld clip'
+  exclude+='|brute-force supersampled|^Orbit with the focal unknown'
   # The tracker's occlusion-aware survival and sigma-5 noise sweeps: 650 s and more each under ASan.
   exclude+='|^With the occlusion-aware options 90|^Tracking the orbit with noise sigma 5'
   # 115-255 s each under ASan (10x the Release time), for the 45-minute CI budget: the Kalman

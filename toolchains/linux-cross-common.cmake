@@ -37,6 +37,9 @@ elseif(EPITRACK_QEMU)
       ${EPITRACK_QEMU} -L ${_qemu_ld_prefix} -E
       LD_LIBRARY_PATH=${_qemu_ld_prefix}/lib:/usr/lib/${EPITRACK_TARGET_TRIPLE})
 endif()
+# For scripts that run target programs themselves (.ci/cross_aarch64.sh reads it from the cache).
+set(EPITRACK_TARGET_EMULATOR "${CMAKE_CROSSCOMPILING_EMULATOR}" CACHE INTERNAL
+    "Command prefix that runs a target program on the build machine")
 if(EPITRACK_CPU_FLAGS_FILE)
   include(${EPITRACK_CPU_FLAGS_FILE})
 endif()

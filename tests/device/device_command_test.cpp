@@ -138,11 +138,11 @@ TEST_CASE("epitrack-device prints one pose line per frame and a final statistics
     }
   }
   CHECK(tracking > 30);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "frames", -1) == 50);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "tracked", -1) == tracking);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "lost", -1) == 0);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "dropped", -1) == 0);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "ms_median", -1) > 0.0);
+  CHECK(epitrack::test::jsonNumber(summary, "frames", -1) == 50);
+  CHECK(epitrack::test::jsonNumber(summary, "tracked", -1) == tracking);
+  CHECK(epitrack::test::jsonNumber(summary, "lost", -1) == 0);
+  CHECK(epitrack::test::jsonNumber(summary, "dropped", -1) == 0);
+  CHECK(epitrack::test::jsonNumber(summary, "ms_median", -1) > 0.0);
   CHECK(summary.find("\"stopped_by\": \"end\"") != std::string::npos);
   // Standard output is the default pose stream.
   const std::string stdout_file = dir.file("stdout.jsonl");
@@ -163,7 +163,7 @@ TEST_CASE("epitrack-device --realtime drops frames it cannot keep up with", "[de
   std::vector<epitrack::test::DeviceLine> lines;
   std::string summary;
   epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
-  const double dropped = epitrack::test::jsonNumberAfter(summary, "dropped", -1);
+  const double dropped = epitrack::test::jsonNumber(summary, "dropped", -1);
   CHECK(dropped > 0);
   CHECK(static_cast<double>(lines.size()) + dropped == 60);
   // At a pace the loop keeps up with (4 fps: 250 ms a frame, even on a loaded machine) nothing
@@ -174,7 +174,7 @@ TEST_CASE("epitrack-device --realtime drops frames it cannot keep up with", "[de
   lines.clear();
   epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
   CHECK(lines.size() == 8);
-  CHECK(epitrack::test::jsonNumberAfter(summary, "dropped", -1) == 0);
+  CHECK(epitrack::test::jsonNumber(summary, "dropped", -1) == 0);
 }
 
 TEST_CASE("epitrack-device stops cleanly on SIGINT and SIGTERM", "[device][cli]") {
@@ -210,8 +210,7 @@ TEST_CASE("epitrack-device stops cleanly on SIGINT and SIGTERM", "[device][cli]"
     epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
     CHECK(lines.size() > 3);
     CHECK(lines.size() < 60);
-    CHECK(epitrack::test::jsonNumberAfter(summary, "frames", -1) ==
-          static_cast<double>(lines.size()));
+    CHECK(epitrack::test::jsonNumber(summary, "frames", -1) == static_cast<double>(lines.size()));
     CHECK(summary.find(sig == SIGINT ? "\"stopped_by\": \"SIGINT\""
                                      : "\"stopped_by\": \"SIGTERM\"") != std::string::npos);
   }
@@ -249,7 +248,7 @@ TEST_CASE("epitrack-device --record writes the frames; replaying them gives the 
   b.clear();
   epitrack::test::parseDeviceOutput(readWholeFile(replay), b, summary_b);
   CHECK(b.size() == 40);
-  CHECK(epitrack::test::jsonNumberAfter(summary_b, "tracked", -1) > 20);
+  CHECK(epitrack::test::jsonNumber(summary_b, "tracked", -1) > 20);
   // An unwritable recording target named on the command line is refused before the first frame
   // (exit 2, issue 9: unusable paths given on the command line are usage errors).
   CHECK(run(device() + " --source " + clip + "/frames" + args + " --record /proc/nope.mjpeg" +

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "hal/io/text_formats.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace epitrack::test {
 
@@ -19,12 +20,6 @@ struct DeviceLine {
   double p[3] = {0, 0, 0};
   double ms = 0.0;
 };
-
-inline double jsonNumberAfter(const std::string& json, const std::string& key, double missing) {
-  const auto at = json.find("\"" + key + "\"");
-  if (at == std::string::npos) return missing;
-  return std::strtod(json.c_str() + json.find(':', at) + 1, nullptr);
-}
 
 inline bool jsonArray(const std::string& json, const std::string& key, double* out, int n) {
   const auto at = json.find("\"" + key + "\": [");
@@ -55,17 +50,13 @@ inline void parseDeviceOutput(const std::string& text, std::vector<DeviceLine>& 
       continue;
     }
     DeviceLine d;
-    d.frame = static_cast<long>(jsonNumberAfter(l, "frame", -1));
-    d.t = jsonNumberAfter(l, "t", 0);
-    const auto s = l.find("\"status\": \"");
-    if (s != std::string::npos) {
-      const auto b = s + 11;
-      d.status = l.substr(b, l.find('"', b) - b);
-    }
-    d.features = static_cast<int>(jsonNumberAfter(l, "features", 0));
+    d.frame = static_cast<long>(jsonNumber(l, "frame", -1));
+    d.t = jsonNumber(l, "t", 0);
+    d.status = jsonString(l, "status");
+    d.features = static_cast<int>(jsonNumber(l, "features", 0));
     jsonArray(l, "q", d.q, 4);
     jsonArray(l, "p", d.p, 3);
-    d.ms = jsonNumberAfter(l, "ms", 0);
+    d.ms = jsonNumber(l, "ms", 0);
     lines.push_back(d);
   }
 }

@@ -98,7 +98,7 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
   CHECK(summary.find("\"focal_source\": \"self-calibrated\"") != std::string::npos);
   epitrack::CameraIntrinsics K;
   REQUIRE(epitrack::hal::readIntrinsicsFile(clip + "/intrinsics.txt", K, error));
-  const double focal = epitrack::test::jsonNumberAfter(summary, "focal_px", -1);
+  const double focal = epitrack::test::jsonNumber(summary, "focal_px", -1);
   CHECK(std::abs(focal - K.fx) < 0.02 * K.fx);
   std::size_t sc_first = lines.size();
   for (std::size_t i = 0; i < lines.size(); ++i) {

@@ -95,10 +95,12 @@ inline std::string jsonString(const std::string& json, const std::string& key) {
   return json.substr(q1 + 1, q2 - q1 - 1);
 }
 
-/// The numeric value of the first field named `key`; NaN when absent, so any comparison fails.
-inline double jsonNumber(const std::string& json, const std::string& key) {
+/// The numeric value of the first field named `key`; `missing` when absent (by default NaN, so
+/// any comparison with it fails).
+inline double jsonNumber(const std::string& json, const std::string& key,
+                         double missing = std::numeric_limits<double>::quiet_NaN()) {
   const auto at = json.find("\"" + key + "\"");
-  if (at == std::string::npos) return std::numeric_limits<double>::quiet_NaN();
+  if (at == std::string::npos) return missing;
   return std::strtod(json.c_str() + json.find(':', at) + 1, nullptr);
 }
 

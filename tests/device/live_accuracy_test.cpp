@@ -143,3 +143,46 @@ TEST_CASE("Live poses on a replayed handheld clip are within 2x the offline solv
   checkLiveAgainstOffline("--scene handheld --frames 300 --size 480x360 --focal 420 --quiet", 100,
                           2.0, false, "device-handheld");
 }
+
+TEST_CASE("Live poses on the real KITTI excerpts follow the GPS/INS ground truth",
+          "[device][accuracy][real]") {
+  // Car-mounted, 10 Hz, forward motion (1.2 m a frame), given intrinsics. Measured (Release,
+  // x86-64): seq06 49 of 51 frames tracking, ATE 0.11 % of the path; highway 33 of 51, 0.60 %
+  // (the offline solver: 0.22 % and 1.40 %). The rotation is not checked: on a straight path a
+  // position-fitted similarity leaves the roll about it free (a constant 4-6 degrees on seq06).
+  struct Case {
+    const char* name;
+    int min_tracking;
+    double max_ate_rel;
+  };
+  for (const Case c :
+       {Case{"kitti_seq06_excerpt", 45, 0.003}, Case{"kitti_highway_excerpt", 30, 0.012}}) {
+    DYNAMIC_SECTION(c.name) {
+      if (!epitrack::test::haveSharedSequence(c.name)) continue;
+      const std::string seq = epitrack::test::sharedDataDir() + "/" + c.name;
+      TempDir dir("device-real");
+      const std::string poses = dir.file("poses.jsonl");
+      REQUIRE(run(binaryPath("firmware_like/epitrack-device") + " --source " + seq +
+                  "/frames --intrinsics " + seq + "/intrinsics.txt --poses " + poses +
+                  " 2>/dev/null") == 0);
+      std::vector<epitrack::test::DeviceLine> lines;
+      std::string summary;
+      epitrack::test::parseDeviceOutput(readWholeFile(poses), lines, summary);
+      REQUIRE(lines.size() == 51);
+      int tracking = 0, lost = 0;
+      for (const auto& l : lines) {
+        tracking += l.status == "tracking" ? 1 : 0;
+        lost += l.status == "lost" ? 1 : 0;
+      }
+      std::vector<epitrack::hal::TrajectoryEntry> gt;
+      std::string error;
+      REQUIRE(epitrack::hal::readTrajectoryFile(seq + "/groundtruth.txt", gt, error));
+      const auto live = evaluate(gt, epitrack::test::trackingTrajectory(lines));
+      std::printf("device on %s: %d of 51 frames tracking, %d lost, ATE %.4f %% of the path\n",
+                  c.name, tracking, lost, 100.0 * live.ate_rmse_rel);
+      CHECK(tracking >= c.min_tracking);
+      CHECK(lost == 0);
+      CHECK(live.ate_rmse_rel < c.max_ate_rel);
+    }
+  }
+}

@@ -42,5 +42,8 @@ if [ "${EPITRACK_SANITIZER_FULL:-0}" != 1 ]; then
   # other degenerate clips run here) and the live-versus-offline accuracy comparisons (the device
   # loop runs here in the 500-frame allocation test and the command tests).
   exclude+='|^The Kalman gate rejects injected outliers|^Extreme motion blur|^Live poses on a replayed'
+  # The whole-chain accuracy clips of issue 6 (17-29 s each in Release: render, track, solve);
+  # the same code runs here through the shorter solve and tracker tests.
+  exclude+='|^Solve accuracy:'
 fi
 ctest --test-dir "$build" -j "$jobs" --output-on-failure -E "$exclude" ${EPITRACK_CTEST_ARGS:-}

@@ -49,6 +49,12 @@ struct LiveMapOptions {
   double keyframe_min_tracked = 0.7;  ///< or when inliers fall below this fraction of the last kf's
   int min_pnp_inliers = 15;           ///< fewer: the frame is lost
   int max_outlier_frames = 2;  ///< consecutive PnP outlier frames that detach a track's point
+  /// Robust pose refinement (as SolverOptions): each frame's pose is refined once more on the
+  /// PnP inliers within outlier_sigmas of the residual scale (median-based, smoothed over
+  /// frames), with a Huber threshold of huber_sigmas. 0 disables it.
+  double outlier_sigmas = 4.0;
+  double huber_sigmas = 2.0;
+  double min_outlier_px = 0.1;
   uint64_t seed = 1;
   // Focal self-calibration (paper §5.2) before the map, when the intrinsics are not given: the
   // camera is taken as a centred pinhole (fx = fy = f, principal point at the image centre) and f
@@ -157,6 +163,7 @@ class LiveMap {
   void setReference();
   bool tryInitialize(LiveFrameResult& result);
   bool trackFrame(LiveFrameResult& result);
+  void robustRefine(std::size_t matches, PnpResult& pr);
   bool needKeyframe(const PoseCw& pose, int inliers);
   int64_t addKeyframe(const PoseCw& pose, int inliers);
   void addObservation(int64_t kf_seq, int point, const Eigen::Vector2d& px);
@@ -198,6 +205,8 @@ class LiveMap {
   std::vector<int> record_of_match_;
   std::vector<int> accepted_;  // initialisation: matches that triangulated
   std::vector<double> scratch_;
+  std::vector<uint8_t> robust_mask_;  // max_features
+  double robust_sigma_px_ = 0.0;      // smoothed residual scale of the tracked frames
   std::vector<BaCamera> ba_cameras_;
   std::vector<uint8_t> ba_fixed_;
   std::vector<int64_t> ba_kf_seq_;

@@ -422,6 +422,25 @@ bool Solver::registerFrame(int f) {
   PnpResult r;
   if (pnp.estimate(X, x, po, r) != PnpRansac::Status::kOk) return false;
   if (r.inliers < 12 || r.inliers * 2 < static_cast<int>(X.size())) return false;
+  if (robust_cut_px_ > 0.0) {
+    // After a global adjustment: refine on the observations within its robust cut, with its
+    // Huber threshold (the RANSAC threshold and the fixed Huber loss admit biased tracks).
+    std::vector<uint8_t> keep(X.size(), 0);
+    int kept = 0;
+    for (std::size_t i = 0; i < X.size(); ++i) {
+      const Eigen::Vector3d pc = r.pose.toCamera(X[i]);
+      if (pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= robust_cut_px_) {
+        keep[i] = 1;
+        ++kept;
+      }
+    }
+    if (kept >= 12) {
+      PoseRefineOptions ro;
+      ro.focal_px = f_;
+      ro.huber_px = robust_huber_px_;
+      refinePose(X, x, keep, ro, r.pose);
+    }
+  }
   auto& fr = frames_[static_cast<std::size_t>(f)];
   fr.solved = true;
   fr.pose = r.pose;
@@ -566,7 +585,21 @@ void Solver::adjust(bool global) {
           {c, point_slot[static_cast<std::size_t>(p)], Eigen::Vector2d(o.x, o.y), e});
     }
   }
-  const double cut = 4.0 * options_.reproj_threshold_px;
+  double cut = 4.0 * options_.reproj_threshold_px;
+  double huber = options_.huber_px;
+  if (global && candidates.size() >= 50 && options_.outlier_sigmas > 0.0) {
+    // Robust scale of this clip's residuals (Rayleigh: median |e| = 1.1774 sigma). Windowed
+    // adjustments keep the fixed cut: a young map's residuals are not yet representative.
+    std::vector<double> e(candidates.size());
+    for (std::size_t i = 0; i < candidates.size(); ++i) e[i] = candidates[i].residual;
+    const double sigma = median(std::move(e)) / 1.1774;
+    cut = std::min(cut, std::max(options_.min_outlier_px, options_.outlier_sigmas * sigma));
+    if (options_.huber_sigmas > 0.0)
+      huber = std::min(options_.huber_px,
+                       std::max(0.5 * options_.min_outlier_px, options_.huber_sigmas * sigma));
+    robust_cut_px_ = cut;
+    robust_huber_px_ = huber;
+  }
   std::vector<BaObservation> obs;
   for (const auto& c : candidates)
     if (c.residual <= cut) obs.push_back({c.camera, c.point, c.xy});
@@ -583,7 +616,7 @@ void Solver::adjust(bool global) {
   BundleAdjuster ba(static_cast<int>(cams.size()), static_cast<int>(pts.size()),
                     static_cast<int>(obs.size()));
   BundleAdjustmentOptions bo;
-  bo.huber_px = options_.huber_px;
+  bo.huber_px = huber;
   bo.max_iterations = global ? 30 : 8;
   bo.refine_focal = global && ((focal_source_ == "self-calibrated") ||
                                (focal_source_ == "given" && options_.refine_given_focal));
@@ -630,6 +663,8 @@ bool Solver::registerFrames() {
 
 bool Solver::finalize() {
   if (tripod_) return true;
+  // Twice: the second pass measures the robust scale on the adjusted map's residuals.
+  adjust(true);
   adjust(true);
   if (options_.refine_distortion > 0) adjust(true);  // distortion changes the normalized points
   // Every frame (keyframes included) re-resected on the final points: PnP from scratch when the

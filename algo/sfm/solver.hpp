@@ -31,7 +31,17 @@ struct SolverOptions {
   double reproj_threshold_px = 2.5;     ///< PnP inlier / triangulation acceptance threshold
   int ba_window = 8;                    ///< keyframes refined while solving (older ones fixed)
   double huber_px = 1.0;
-  int max_track_views = 12;  ///< views used to triangulate a new track
+  /// Robust statistics of the global adjustments: the residual scale sigma is estimated from
+  /// the median reprojection error (a 2D Gaussian error's norm has median 1.1774 sigma); beyond
+  /// `outlier_sigmas` sigmas an observation is left out of the global adjustments and of the
+  /// final per-frame poses, and the Huber threshold becomes `huber_sigmas` sigmas (never more
+  /// than huber_px). Tracks that are not fixed scene points (occlusion corners, T-junctions,
+  /// features sliding along an edge) fit a solve to a few tenths of a pixel and bias it through
+  /// a fixed 1 px Huber loss; a clean clip's sigma is a few hundredths. 0 disables either.
+  double outlier_sigmas = 4.0;
+  double huber_sigmas = 2.0;
+  double min_outlier_px = 0.1;  ///< the robust cut never goes below this (pixels)
+  int max_track_views = 12;     ///< views used to triangulate a new track
   uint64_t seed = 1;
 };
 
@@ -138,6 +148,9 @@ class Solver {
   std::vector<Eigen::Matrix3d> homographies_;  // of the calibration pairs (tripod solve)
   int init_a_ = -1, init_b_ = -1;
   bool tripod_ = false;
+  // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
+  double robust_cut_px_ = 0.0;
+  double robust_huber_px_ = 0.0;
 };
 
 const char* toString(Solver::Status s);

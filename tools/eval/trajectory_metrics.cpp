@@ -19,6 +19,12 @@ double angleDeg(const Eigen::Matrix3d& R) {
 
 bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
                       const std::vector<Eigen::Vector3d>& target, Similarity& out) {
+  return umeyamaAlignment(source, target, Eigen::Matrix3d::Zero(), out);
+}
+
+bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
+                      const std::vector<Eigen::Vector3d>& target,
+                      const Eigen::Matrix3d& orientation_sum, Similarity& out) {
   const std::size_t n = source.size();
   if (n < 3 || target.size() != n) return false;
   Eigen::Vector3d mu_s = Eigen::Vector3d::Zero();
@@ -47,6 +53,23 @@ bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
   if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) S(2, 2) = -1.0;
   out.R = svd.matrixU() * S * svd.matrixV().transpose();
   out.s = (d.asDiagonal() * S).trace() / var_s;
+  if (!orientation_sum.isZero(0.0)) {
+    // max tr(Rᵀ (cov + w M)): the positions' term plus w times the orientations' chordal
+    // agreement; the orientations matter only where the positions' singular values are below w.
+    const Eigen::JacobiSVD<Eigen::Matrix3d> so(orientation_sum, Eigen::ComputeFullU);
+    const double m0 = so.singularValues()(0);
+    if (m0 > 0.0) {
+      const Eigen::Matrix3d C = cov + (kOrientationTieBreak * d(0) / m0) * orientation_sum;
+      const Eigen::JacobiSVD<Eigen::Matrix3d> sc(C, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+      if (sc.matrixU().determinant() * sc.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
+      const Eigen::Matrix3d R = sc.matrixU() * D * sc.matrixV().transpose();
+      if (R.allFinite()) {
+        out.R = R;
+        out.s = (R.transpose() * cov).trace() / var_s;  // least squares for this rotation
+      }
+    }
+  }
   out.t = mu_t - out.s * out.R * mu_s;
   return std::isfinite(out.s) && out.s > 0.0;
 }
@@ -93,8 +116,11 @@ bool evaluateTrajectory(const std::vector<hal::TrajectoryEntry>& gt,
     src.push_back(e->position);
     dst.push_back(g->position);
   }
+  Eigen::Matrix3d orientation_sum = Eigen::Matrix3d::Zero();
+  for (const auto& [g, e] : pairs)
+    orientation_sum += g->rotation.toRotationMatrix() * e->rotation.toRotationMatrix().transpose();
   Similarity S;
-  m.aligned = umeyamaAlignment(src, dst, S);
+  m.aligned = umeyamaAlignment(src, dst, orientation_sum, S);
   if (!m.aligned) {  // two frames or a straight line: align centroids and scale only
     Eigen::Vector3d ms = Eigen::Vector3d::Zero();
     Eigen::Vector3d md = Eigen::Vector3d::Zero();
@@ -113,10 +139,8 @@ bool evaluateTrajectory(const std::vector<hal::TrajectoryEntry>& gt,
     S.s = ns > 0.0 ? nd / ns : 1.0;
     // The centres do not fix the rotation (a tripod, a straight line): take it from the camera
     // orientations instead, the chordal mean of R_gt,i R_est,iᵀ projected onto SO(3).
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    for (const auto& [g, e] : pairs)
-      M += g->rotation.toRotationMatrix() * e->rotation.toRotationMatrix().transpose();
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(orientation_sum,
+                                                Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
     if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
     S.R = svd.matrixU() * D * svd.matrixV().transpose();

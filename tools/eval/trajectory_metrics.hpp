@@ -25,6 +25,18 @@ struct Similarity {
 bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
                       const std::vector<Eigen::Vector3d>& target, Similarity& out);
 
+/// As umeyamaAlignment, with the camera orientations breaking near-ties of the rotation:
+/// `orientation_sum` is the sum over the matched frames of R_target,i R_source,iᵀ, added to the
+/// positions' cross-covariance with a weight of kOrientationTieBreak times its largest singular
+/// value. Rotation directions the positions determine keep their least-squares value (to
+/// ~1e-4); those they leave (nearly) free — about a straight path (a car, a dolly), about the
+/// thin axis of a sideways walk — are taken from the orientations instead of from noise. The
+/// scale is then the least-squares scale for that rotation.
+bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
+                      const std::vector<Eigen::Vector3d>& target,
+                      const Eigen::Matrix3d& orientation_sum, Similarity& out);
+constexpr double kOrientationTieBreak = 1e-4;
+
 /// The figures of `epitrack-eval` (ARCHITECTURE.md "Commands").
 struct TrajectoryMetrics {
   int matched_frames = 0;
@@ -40,7 +52,7 @@ struct TrajectoryMetrics {
   double rpe_trans_rel = 0.0;     ///< sum over consecutive matched pairs of |relative translation
                                   ///< error| / sum of GT steps
   double rpe_rot_deg_mean = 0.0;  ///< mean angle error of the relative rotations
-  bool aligned = false;           ///< false when fewer than 3 frames matched or they are degenerate
+  bool aligned = false;  ///< false when fewer than 3 frames matched or the centres are collinear
 };
 
 /// Associates poses by frame index (equal `t` within `max_dt`), aligns the estimate to the ground

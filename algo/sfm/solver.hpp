@@ -24,6 +24,11 @@ struct SolverOptions {
   bool refine_given_focal = false;
   double fallback_focal_widths =
       1.2;  ///< focal when it is neither given nor observable (x max(w, h))
+  /// When F does not observe the focal (a critical motion for the paper's self-calibration: an
+  /// orbit whose optical axes meet, forward motion, a long lens): the fallback is the minimum of
+  /// a profile over candidate focals, each a whole solve with that focal, scored by the median
+  /// reprojection error of every observation of a map point (false: fallback_focal_widths).
+  bool focal_sweep = true;
   double keyframe_parallax_deg =
       2.0;                    ///< new keyframe when the median parallax to the last reaches this
   int keyframe_max_gap = 40;  ///< or after this many frames
@@ -61,6 +66,15 @@ struct MapPoint {
   int keyframe_observations = 0;
   double reproj_px = 0.0;  ///< RMS over its inlier observations in solved frames
   int observations = 0;
+};
+
+/// One candidate of the focal profile (SolverOptions::focal_sweep).
+struct FocalProfilePoint {
+  double start_px = 0.0;          ///< the focal the solve started from
+  double focal_px = 0.0;          ///< the focal it ended with (= start_px unless refined)
+  bool refined = false;           ///< the focal was refined in the final adjustment
+  double median_reproj_px = 0.0;  ///< over every observation of a map point in a solved frame
+  int solved_frames = 0;          ///< 0: the solve with this focal failed
 };
 
 struct PairFocal {
@@ -111,6 +125,15 @@ class Solver {
   [[nodiscard]] bool focalObservable() const { return focal_observable_; }
   [[nodiscard]] const std::string& motion() const { return motion_; }
   [[nodiscard]] const std::vector<PairFocal>& pairFocals() const { return pair_focals_; }
+  /// The focal profile when F did not observe the focal (empty otherwise), in evaluation order.
+  [[nodiscard]] const std::vector<FocalProfilePoint>& focalProfile() const { return profile_; }
+  /// How the fallback focal was chosen: "profile" (a clear minimum of the profile), "profile-flat"
+  /// (the profile's best, no clear minimum), "field-of-view" (fallback_focal_widths); "" when the
+  /// focal was given or self-calibrated from F.
+  [[nodiscard]] const std::string& focalFallback() const { return focal_fallback_; }
+  /// Median reprojection error (pixels) of every observation of a valid map point in a solved
+  /// frame, inliers or not (the profile's score).
+  [[nodiscard]] double medianReprojectionAll() const;
   [[nodiscard]] int solvedFrames() const;
   /// Mean and median reprojection error over every inlier observation of a solved frame.
   void reprojectionStats(double& mean_px, double& median_px) const;
@@ -127,6 +150,10 @@ class Solver {
   int triangulateNewTracks(int f);
   void adjust(bool global);
   bool tripodSolve();
+  /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
+  void sweepFocal();
+  [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,
+                                             bool refine) const;
   void computeErrors();
   int commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
                    std::vector<Eigen::Vector2d>* x2) const;
@@ -148,6 +175,10 @@ class Solver {
   std::vector<Eigen::Matrix3d> homographies_;  // of the calibration pairs (tripod solve)
   int init_a_ = -1, init_b_ = -1;
   bool tripod_ = false;
+  bool sweep_pending_ = false;
+  bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA
+  std::vector<FocalProfilePoint> profile_;
+  std::string focal_fallback_;
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
   double robust_huber_px_ = 0.0;

@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -32,10 +33,11 @@ struct RealSolve {
 
 RealSolve solveAndScore(const TempDir& dir, const std::string& frames,
                         const std::string& intrinsics, const std::string& groundtruth,
-                        const std::string& extra = "") {
-  const std::string out = dir.file("out");
+                        const std::string& out_name = "out") {
+  const std::string out = dir.file(out_name);
   REQUIRE(run(binaryPath("tools/solve/epitrack-solve") + " " + frames + " --out " + out +
-              " --intrinsics " + intrinsics + " --quiet " + extra) == 0);
+              (intrinsics.empty() ? std::string() : " --intrinsics " + intrinsics) + " --quiet") ==
+          0);
   RealSolve r;
   r.summary = readWholeFile(out + "/summary.json");
   std::vector<epitrack::hal::TrajectoryEntry> g, e;
@@ -74,8 +76,12 @@ TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real]"
   CHECK(r.m.ate_rmse_rel <= 0.016);
 }
 
-TEST_CASE("Real solve: Middlebury templeRing views 12-30, given intrinsics", "[solve][real]") {
-  // Issue 6 asks <= 0.1 %; reached: 19/19 at 0.17 % (0.33 % before the robust cut, stop 15).
+TEST_CASE("Real solve: Middlebury templeRing views 12-30, given and self-calibrated",
+          "[solve][real]") {
+  // Issue 6 asks <= 0.1 % and a self-calibrated focal within 0.5 %. Reached (stop 15): given
+  // intrinsics 19/19 at 0.17 % (0.33 % before the robust cut); self-calibrated, the ring is
+  // critical for F (optical axes meet) and the focal profile finds 1523.1 px (true 1520.4,
+  // 0.18 %), ATE 0.18 % (49 % off with the field-of-view fallback before).
   if (!haveSharedSequence("middlebury_templeRing")) return;
   const std::string d = sharedDataDir() + "/middlebury_templeRing";
   TempDir dir("real-temple");
@@ -101,8 +107,16 @@ TEST_CASE("Real solve: Middlebury templeRing views 12-30, given intrinsics", "[s
   }
   gt.close();
   const auto r = solveAndScore(dir, frames, d + "/intrinsics.txt", dir.file("groundtruth.txt"));
-  INFO("ate " << r.m.ate_rmse_rel * 100 << " % rot " << r.m.rot_err_deg_mean << " deg");
+  INFO("given: ate " << r.m.ate_rmse_rel * 100 << " % rot " << r.m.rot_err_deg_mean << " deg");
   CHECK(jsonString(r.summary, "status") == "ok");
   CHECK(r.m.matched_frames == 19);
   CHECK(r.m.ate_rmse_rel <= 0.0025);
+  const auto u = solveAndScore(dir, frames, "", dir.file("groundtruth.txt"), "self");
+  const double focal = jsonNumber(u.summary, "focal_px");
+  INFO("self-calibrated: focal " << focal << " (" << jsonString(u.summary, "focal_fallback")
+                                 << ") ate " << u.m.ate_rmse_rel * 100 << " %");
+  CHECK(jsonString(u.summary, "status") == "ok");
+  CHECK(u.m.matched_frames == 19);
+  CHECK(std::abs(focal / 1520.4 - 1.0) <= 0.005);
+  CHECK(u.m.ate_rmse_rel <= 0.0025);
 }

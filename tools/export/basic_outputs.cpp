@@ -172,6 +172,21 @@ std::string formatSummaryJson(const Reconstruction& rec,
   // Plane-based frames have +z up; the first-camera frame keeps the camera axes (-y up).
   j.field("up", std::string(rec.plane_found ? "+z" : "-y"));
   j.endObject();
+  if (!rec.focal_fallback.empty()) j.field("focal_fallback", rec.focal_fallback);
+  if (!rec.focal_profile.empty()) {
+    j.key("focal_profile");
+    j.beginArray();
+    for (const FocalProfileEntry& f : rec.focal_profile) {
+      j.beginObject();
+      j.field("start_px", f.start_px);
+      j.field("focal_px", f.focal_px);
+      j.field("refined", f.refined);
+      j.field("median_reproj_px", f.median_reproj_px);
+      j.field("solved_frames", f.solved_frames);
+      j.endObject();
+    }
+    j.endArray();
+  }
   j.key("focal_estimates");
   j.beginArray();
   for (const FocalEstimate& f : rec.focal_estimates) {

@@ -66,6 +66,15 @@ struct FocalEstimate {
   bool coherent = false;  ///< agreed with the chosen value
 };
 
+/// One candidate of the focal profile (when F did not observe the focal; for the report).
+struct FocalProfileEntry {
+  double start_px = 0.0;
+  double focal_px = 0.0;
+  bool refined = false;
+  double median_reproj_px = 0.0;
+  int solved_frames = 0;
+};
+
 /// Wall time per solver stage, in the order they ran, plus the total.
 struct StageSeconds {
   std::vector<std::pair<std::string, double>> stages;
@@ -97,6 +106,10 @@ struct Reconstruction {
   /// summary.json); summary.json is written last, so the list is complete when it exists.
   std::vector<std::string> files;
   std::vector<FocalEstimate> focal_estimates;
+  /// How a fallback focal was chosen ("profile", "profile-flat", "field-of-view"; "" otherwise)
+  /// and the profile behind it.
+  std::string focal_fallback;
+  std::vector<FocalProfileEntry> focal_profile;
   StageSeconds seconds;
 
   /// Reprojection statistics. NaN: computed by the summary from the observation residuals, or

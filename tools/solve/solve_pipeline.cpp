@@ -380,6 +380,10 @@ int runSolve(const SolveCommandOptions& o) {
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
+  rec.focal_fallback = solver.focalFallback();
+  for (const auto& p : solver.focalProfile())
+    rec.focal_profile.push_back(
+        {p.start_px, p.focal_px, p.refined, p.median_reproj_px, p.solved_frames});
   for (const auto& p : solver.pairFocals()) {
     if (!p.observable) continue;
     rec.focal_estimates.push_back({p.frame_a, p.frame_b, p.focal_px, p.coherent});
@@ -577,10 +581,13 @@ int runSolve(const SolveCommandOptions& o) {
   io::reprojectionStatistics(rec, mean, median);
   char line[512];
   std::snprintf(line, sizeof(line),
-                "%s: %d/%d frames solved, focal %.2f px (%s%s), %zu points, reprojection mean "
-                "%.3f px, %.2f s; outputs in %s",
+                "%s: %d/%d frames solved, focal %.2f px (%s%s%s), %zu points, reprojection "
+                "mean %.3f px, %.2f s; outputs in %s",
                 rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
-                rec.focal_source.c_str(), rec.focal_observable ? "" : ", not observable",
+                rec.focal_source.c_str(), rec.focal_observable ? "" : ", not observable from F",
+                rec.focal_fallback == "profile"
+                    ? ", from the reprojection profile"
+                    : (rec.focal_fallback == "profile-flat" ? ", profile flat: a guess" : ""),
                 rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
   if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);

@@ -97,6 +97,11 @@ int main(int argc, char** argv) {
   cl.real("gate-speed", "FRACTION",
           "widen the Kalman gate by this fraction of the predicted speed (default 0.25)",
           &o.gate_speed_fraction, 0.0, 100.0);
+  bool occlusion_aware = false;
+  cl.flag("occlusion-aware",
+          "centre-window residual and stretch-gated template refresh (longer tracks; sets the "
+          "refresh residual to 0.4)",
+          &occlusion_aware);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
   cl.flag("quiet", "no progress on stderr", &quiet);
   cl.flag("frame-stats", "per frame on stderr: live tracks, losses by reason, detections, ms",
@@ -104,6 +109,7 @@ int main(int argc, char** argv) {
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
+  if (occlusion_aware) o.occlusionAware();
   o.kalman_gate = !no_kalman;
   o.affine = !translation_only;
 

@@ -6,9 +6,8 @@
 #include <sstream>
 #include <string>
 
-#include "hal/io/text_formats.hpp"
 #include "tests/support/test_support.hpp"
-#include "tools/eval/trajectory_metrics.hpp"
+#include "tests/tools/trajectory_score.hpp"
 
 // epitrack-solve on the real sequences of ../shared/data with their given intrinsics, scored
 // against their ground truth as epitrack-eval scores it. Each test holds the figures reached
@@ -40,11 +39,7 @@ RealSolve solveAndScore(const TempDir& dir, const std::string& frames,
           0);
   RealSolve r;
   r.summary = readWholeFile(out + "/summary.json");
-  std::vector<epitrack::hal::TrajectoryEntry> g, e;
-  std::string error;
-  REQUIRE(epitrack::hal::readTrajectoryFile(groundtruth, g, error));
-  REQUIRE(epitrack::hal::readTrajectoryFile(out + "/cameras.tum", e, error));
-  REQUIRE(epitrack::eval::evaluateTrajectory(g, e, 0.01, r.m, error));
+  r.m = epitrack::test::scoreTrajectoryFiles(groundtruth, out + "/cameras.tum");
   return r;
 }
 

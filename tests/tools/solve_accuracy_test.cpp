@@ -6,7 +6,7 @@
 
 #include "hal/io/text_formats.hpp"
 #include "tests/support/test_support.hpp"
-#include "tools/eval/trajectory_metrics.hpp"
+#include "tests/tools/trajectory_score.hpp"
 
 // Issue 6's accuracy targets for the whole chain (rendered frames -> 2D tracker -> solver ->
 // cameras.tum), scored by epitrack-eval's metrics against the rendered ground truth. The solver
@@ -44,11 +44,7 @@ Solved solve(const TempDir& dir, const std::string& clip, const std::string& nam
   Solved s;
   s.summary = readWholeFile(out + "/summary.json");
   s.focal = jsonNumber(s.summary, "focal_px");
-  std::vector<epitrack::hal::TrajectoryEntry> g, e;
-  std::string error;
-  REQUIRE(epitrack::hal::readTrajectoryFile(clip + "/groundtruth.txt", g, error));
-  REQUIRE(epitrack::hal::readTrajectoryFile(out + "/cameras.tum", e, error));
-  REQUIRE(epitrack::eval::evaluateTrajectory(g, e, 0.01, s.m, error));
+  s.m = epitrack::test::scoreTrajectoryFiles(clip + "/groundtruth.txt", out + "/cameras.tum");
   return s;
 }
 

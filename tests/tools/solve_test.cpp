@@ -3,9 +3,8 @@
 #include <cstdio>
 #include <string>
 
-#include "hal/io/text_formats.hpp"
 #include "tests/support/test_support.hpp"
-#include "tools/eval/trajectory_metrics.hpp"
+#include "tests/tools/trajectory_score.hpp"
 
 // epitrack-solve end to end on rendered synthetic clips: tracking, solve, exports, rendering.
 
@@ -20,13 +19,7 @@ namespace {
 bool exists(const std::string& path) { return ::access(path.c_str(), R_OK) == 0; }
 
 epitrack::eval::TrajectoryMetrics evaluate(const std::string& gt, const std::string& est) {
-  std::vector<epitrack::hal::TrajectoryEntry> g, e;
-  std::string error;
-  REQUIRE(epitrack::hal::readTrajectoryFile(gt, g, error));
-  REQUIRE(epitrack::hal::readTrajectoryFile(est, e, error));
-  epitrack::eval::TrajectoryMetrics m;
-  REQUIRE(epitrack::eval::evaluateTrajectory(g, e, 0.01, m, error));
-  return m;
+  return epitrack::test::scoreTrajectoryFiles(gt, est);
 }
 
 }  // namespace

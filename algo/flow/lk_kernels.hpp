@@ -9,6 +9,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "algo/image/image_view.hpp"
+
 namespace epitrack {
 
 /// Fixed-point formats of the LK kernels (after OpenCV's lkpyramid W_BITS): bilinear weights in
@@ -61,5 +63,81 @@ void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int si
                              const int16_t* Sy, int tstride, LkWindowSums& out);
 /// "sse2", "neon" or "scalar": what lkTranslationSumsVector uses on this build.
 const char* lkVectorIsa();
+
+// ---- The affine iteration (PyramidalLk::alignAffine, Baker & Matthews 2004 §3.2) ---------------
+
+/// Warped positions of the affine iteration: 16.16 fixed point (kLkPosBits fractional bits).
+constexpr int kLkPosBits = 16;
+
+/// Where the template pixel (u, v) lies in the image: (x + u xu + v xv, y + u yu + v yv), each
+/// term 16.16 fixed point, so every position is an exact integer (no per-row rounding).
+struct LkAffineWarp {
+  int32_t x = 0;  ///< template pixel (0, 0)
+  int32_t y = 0;
+  int32_t xu = 1 << kLkPosBits;  ///< step per template column
+  int32_t yu = 0;
+  int32_t xv = 0;  ///< step per template row
+  int32_t yv = 1 << kLkPosBits;
+};
+
+/// The affine sample at the 16.16 position (X, Y), in 1/2^kLkValueBits gray levels: the fraction
+/// cut to fx, fy of kLkWeightBits = 14 bits; horizontal interpolation of both rows,
+/// h = p0 (2^14 - fx) + p1 fx, rounded to 7 fractional bits (h7 = (h + 64) >> 7, at most 32640,
+/// an int16); then vertical, (h7_top (2^14 - fy) + h7_bottom fy + 2^15) >> 16 (< 2^31). Reads the
+/// pixel at (X >> 16, Y >> 16) and its right, lower and lower-right neighbours.
+inline int32_t lkAffineSample(const uint8_t* image, std::ptrdiff_t stride, int32_t X, int32_t Y) {
+  constexpr int32_t kOne = 1 << kLkWeightBits;
+  constexpr int kCut = kLkPosBits - kLkWeightBits;
+  const int32_t fx = (X >> kCut) & (kOne - 1);
+  const int32_t fy = (Y >> kCut) & (kOne - 1);
+  const uint8_t* r0 =
+      image + static_cast<std::ptrdiff_t>(Y >> kLkPosBits) * stride + (X >> kLkPosBits);
+  const uint8_t* r1 = r0 + stride;
+  const int32_t top = (r0[0] * (kOne - fx) + r0[1] * fx + 64) >> 7;
+  const int32_t bottom = (r1[0] * (kOne - fx) + r1[1] * fx + 64) >> 7;
+  return (top * (kOne - fy) + bottom * fy + (1 << 15)) >> 16;
+}
+
+/// Window sums of one affine iteration, e = sample - template (1/32 gray levels), u and v the
+/// template column and row relative to the centre (u - side / 2, v - side / 2).
+struct LkAffineSums {
+  int64_t gx_e = 0;    ///< sum Sx e
+  int64_t gy_e = 0;    ///< sum Sy e
+  int64_t ugx_e = 0;   ///< sum u Sx e
+  int64_t vgx_e = 0;   ///< sum v Sx e
+  int64_t ugy_e = 0;   ///< sum u Sy e
+  int64_t vgy_e = 0;   ///< sum v Sy e
+  int64_t sum_e = 0;   ///< sum e
+  int64_t sum_sq = 0;  ///< sum e^2
+};
+
+/// One pass of the affine iteration over a side x side template warped by `warp` into `image`.
+/// Valid domain: every position of the window has 0 <= X >> 16 <= width - 2 and
+/// 0 <= Y >> 16 <= height - 2 (it suffices that the four corners do: positions are affine in
+/// (u, v)); `T`, `Sx`, `Sy` as for lkTranslationSumsScalar. The sums are exact integers (every
+/// product fits int32, the sums are int64), so every variant gives the same sums bit for bit.
+void lkAffineSumsScalar(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
+/// The same with 128-bit vectors (SSE2 / NEON; the scalar kernel where there are none, or for
+/// windows beyond 56): a software gather of the four neighbours per pixel (one contiguous load
+/// per row where the warped row of 8 pixels steps by exactly one pixel).
+void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                     const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                     LkAffineSums& out);
+/// True when this machine runs lkAffineSumsAvx2 (x86-64 with AVX2, checked once at run time).
+bool lkHaveAvx2();
+/// The same with AVX2 gathers (8 pixels per step); lkAffineSums128 where AVX2 is missing (see
+/// lkHaveAvx2), for windows beyond 80, or when a gather's 4-byte read could pass the image's last
+/// row.
+void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                      const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                      LkAffineSums& out);
+/// The fastest of the above on this machine (chosen once).
+void lkAffineSumsVector(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
+/// "avx2", "sse2", "neon" or "scalar": what lkAffineSumsVector uses on this machine.
+const char* lkAffineVectorIsa();
 
 }  // namespace epitrack

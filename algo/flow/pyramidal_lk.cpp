@@ -77,27 +77,47 @@ bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
   return true;
 }
 
-/// Warped positions of the affine alignment: 16.16 fixed point.
-constexpr int kPosBits = 16;
-constexpr double kPosOne = static_cast<double>(1 << kPosBits);
+/// A length in pixels as 16.16 fixed point (rounded half away from zero). |value| < 2^15.
+inline int32_t toFixed16(double value) {
+  constexpr double kOne = static_cast<double>(1 << kLkPosBits);
+  return static_cast<int32_t>(std::lround(value * kOne));
+}
 
-/// Bilinear sample of `image` at the 16.16 fixed-point position (X, Y), in 1/2^kValueBits gray
-/// levels: the fraction is cut to kWeightBits, the four weights rounded and summing to 1 exactly.
-inline int32_t sampleAt16(ImageView<const uint8_t> image, int32_t X, int32_t Y) {
-  constexpr int kOne = 1 << PyramidalLk::kWeightBits;
-  constexpr int kShift = PyramidalLk::kWeightBits - PyramidalLk::kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
-  const int ix = X >> kPosBits;
-  const int iy = Y >> kPosBits;
-  const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
-  const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
-  const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w11 = kOne - w00 - w01 - w10;
-  const uint8_t* r0 = image.row(iy) + ix;
-  const uint8_t* r1 = r0 + image.stride;
-  return (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
+/// The 16.16 warp of a side x side template with centre (cx, cy) and shape A (template to image):
+/// the centre rounded once, the steps per column and row rounded once (positions are exact
+/// integers from there on, lkAffineSums*). False when a corner of the window (with its bilinear
+/// neighbours) leaves the image.
+bool fixedWarp(double cx, double cy, const double (&A)[4], int half, int width, int height,
+               LkAffineWarp& warp) {
+  const double h = half;
+  // Reject in floating point first (also NaN), so the conversions below cannot overflow.
+  for (const double su : {-h, h}) {
+    for (const double sv : {-h, h}) {
+      const double wx = cx + A[0] * su + A[1] * sv;
+      const double wy = cy + A[2] * su + A[3] * sv;
+      if (!(wx >= -1.0 && wy >= -1.0 && wx < width && wy < height)) return false;
+    }
+  }
+  const int32_t xc = toFixed16(cx);
+  const int32_t yc = toFixed16(cy);
+  warp.xu = toFixed16(A[0]);
+  warp.xv = toFixed16(A[1]);
+  warp.yu = toFixed16(A[2]);
+  warp.yv = toFixed16(A[3]);
+  warp.x = xc - half * (warp.xu + warp.xv);
+  warp.y = yc - half * (warp.yu + warp.yv);
+  // The exact test on the positions the kernels use: 0 <= X >> 16 <= width - 2 at the corners.
+  const int32_t x_limit = (width - 1) << kLkPosBits;
+  const int32_t y_limit = (height - 1) << kLkPosBits;
+  const int span = 2 * half;
+  for (const int u : {0, span}) {
+    for (const int v : {0, span}) {
+      const int32_t X = warp.x + u * warp.xu + v * warp.xv;
+      const int32_t Y = warp.y + u * warp.yu + v * warp.yv;
+      if (X < 0 || Y < 0 || X >= x_limit || Y >= y_limit) return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -333,54 +353,19 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
     // The warped window's corners must stay inside the image (with the bilinear neighbour).
-    double min_x = 1e30, max_x = -1e30, min_y = 1e30, max_y = -1e30;
-    for (const double su : {-h, h}) {
-      for (const double sv : {-h, h}) {
-        const double wx = cx + A[0] * su + A[1] * sv;
-        const double wy = cy + A[2] * su + A[3] * sv;
-        min_x = std::min(min_x, wx);
-        max_x = std::max(max_x, wx);
-        min_y = std::min(min_y, wy);
-        max_y = std::max(max_y, wy);
-      }
-    }
-    if (!(min_x >= 0.0 && min_y >= 0.0 && max_x < image.width - 1 && max_y < image.height - 1)) {
+    LkAffineWarp warp;
+    if (!fixedWarp(cx, cy, A, half_, image.width, image.height, warp)) {
       return LkStatus::kLeftImage;
     }
     ++iterations_;
-    const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
-    const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
-    int64_t s_gx = 0, s_gy = 0, s_ugx = 0, s_vgx = 0, s_ugy = 0, s_vgy = 0, s_e = 0, s_sq = 0;
-    for (int v = 0; v < side_; ++v) {
-      const double dv = v - h;
-      auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
-      auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-      const int16_t* t = T + v * tstride_;
-      const int16_t* sx = Sx + v * tstride_;
-      const int16_t* sy = Sy + v * tstride_;
-      int32_t row_gx = 0, row_gy = 0, row_e = 0;
-      int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
-      for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
-        const int32_t e = sampleAt16(image, X, Y) - t[u];
-        const int32_t ge_x = sx[u] * e;
-        const int32_t ge_y = sy[u] * e;
-        row_gx += ge_x;
-        row_gy += ge_y;
-        row_ugx += static_cast<int64_t>(u - half_) * ge_x;
-        row_ugy += static_cast<int64_t>(u - half_) * ge_y;
-        row_e += e;
-        row_sq += e * e;
-      }
-      const int64_t iv = v - half_;
-      s_gx += row_gx;
-      s_gy += row_gy;
-      s_ugx += row_ugx;
-      s_ugy += row_ugy;
-      s_vgx += iv * row_gx;
-      s_vgy += iv * row_gy;
-      s_e += row_e;
-      s_sq += row_sq;
+    LkAffineSums sums;
+    if (options_.vector_kernels) {
+      lkAffineSumsVector(image, warp, side_, T, Sx, Sy, tstride_, sums);
+    } else {
+      lkAffineSumsScalar(image, warp, side_, T, Sx, Sy, tstride_, sums);
     }
+    const int64_t s_gx = sums.gx_e, s_gy = sums.gy_e, s_ugx = sums.ugx_e, s_vgx = sums.vgx_e;
+    const int64_t s_ugy = sums.ugy_e, s_vgy = sums.vgy_e, s_e = sums.sum_e, s_sq = sums.sum_sq;
     const double g[7] = {static_cast<double>(s_gx),
                          static_cast<double>(s_gy),
                          static_cast<double>(s_ugx),
@@ -433,30 +418,16 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
 double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, double cx, double cy,
                                    const double (&A)[4]) const {
   const int r = residual_radius_;
-  const double h = r;
-  for (const double su : {-h, h}) {
-    for (const double sv : {-h, h}) {
-      const double wx = cx + A[0] * su + A[1] * sv;
-      const double wy = cy + A[2] * su + A[3] * sv;
-      if (!(wx >= 0.0 && wy >= 0.0 && wx < image.width - 1 && wy < image.height - 1)) return -1.0;
-    }
-  }
-  const int16_t* T = value_.data() + patchIndex(slot, 0);
-  const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
-  const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
-  int64_t s_e = 0, s_sq = 0;
-  for (int v = half_ - r; v <= half_ + r; ++v) {
-    const double dv = v - half_;
-    auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
-    auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-    const int16_t* t = T + v * tstride_;
-    for (int u = half_ - r; u <= half_ + r; ++u, X += step_x, Y += step_y) {
-      const int32_t e = sampleAt16(image, X, Y) - t[u];
-      s_e += e;
-      s_sq += e * e;
-    }
-  }
-  const double rms = rmsAfterBias(s_e, s_sq, (2 * r + 1) * (2 * r + 1));
+  LkAffineWarp warp;
+  if (!fixedWarp(cx, cy, A, r, image.width, image.height, warp)) return -1.0;
+  // The central (2r+1)^2 pixels of the base template, sampled as alignAffine does (the scalar
+  // kernel: it reads only the window's columns, not the padding beyond them).
+  const std::size_t offset =
+      patchIndex(slot, 0) + static_cast<std::size_t>((half_ - r) * tstride_ + (half_ - r));
+  LkAffineSums sums;
+  lkAffineSumsScalar(image, warp, 2 * r + 1, value_.data() + offset, grad_x_.data() + offset,
+                     grad_y_.data() + offset, tstride_, sums);
+  const double rms = rmsAfterBias(sums.sum_e, sums.sum_sq, (2 * r + 1) * (2 * r + 1));
   return rms / levels_[static_cast<std::size_t>(slot * level_count_)].centre_contrast;
 }
 

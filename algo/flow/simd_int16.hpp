@@ -22,6 +22,14 @@
 #define EPITRACK_LK_SIMD_NAME "scalar"
 #endif
 
+// EPITRACK_LK_AVX2: x86-64 with GCC or Clang, which compile AVX2 functions (target attribute) into
+// a baseline build; they run only where the processor has AVX2 (checked at run time).
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define EPITRACK_LK_AVX2 1
+#else
+#define EPITRACK_LK_AVX2 0
+#endif
+
 #if EPITRACK_LK_SIMD
 namespace epitrack::simd {
 
@@ -67,11 +75,43 @@ inline I32x4 sra32(I32x4 a) {
 }
 /// Saturating narrowing of 8 x int32 to 8 x int16 (exact when they fit).
 inline I16x8 pack32(I32x4 lo, I32x4 hi) { return _mm_packs_epi32(lo, hi); }
+/// Reinterpretations between the lane widths (SSE2 has one register type for both).
+inline I16x8 as16(I32x4 a) { return a; }
+inline I32x4 as32(I16x8 a) { return a; }
 /// The sum of the 4 lanes, exact in int64.
 inline int64_t sum32(I32x4 a) {
   int32_t lanes[4];
   std::memcpy(lanes, &a, sizeof(lanes));
   return static_cast<int64_t>(lanes[0]) + lanes[1] + lanes[2] + lanes[3];
+}
+/// The 4 lanes into memory.
+inline void store32(int32_t* p, I32x4 a) { std::memcpy(p, &a, sizeof(a)); }
+/// (a0, a1, a2, a3).
+inline I32x4 set32x4(int32_t a0, int32_t a1, int32_t a2, int32_t a3) {
+  return _mm_setr_epi32(a0, a1, a2, a3);
+}
+/// (a0, ..., a7).
+inline I16x8 set16x8(uint16_t a0, uint16_t a1, uint16_t a2, uint16_t a3, uint16_t a4, uint16_t a5,
+                     uint16_t a6, uint16_t a7) {
+  return _mm_setr_epi16(static_cast<int16_t>(a0), static_cast<int16_t>(a1),
+                        static_cast<int16_t>(a2), static_cast<int16_t>(a3),
+                        static_cast<int16_t>(a4), static_cast<int16_t>(a5),
+                        static_cast<int16_t>(a6), static_cast<int16_t>(a7));
+}
+/// Bytes 0..7 (lo) or 8..15 (hi) of the register, widened to 8 x int16.
+inline I16x8 widenLoU8(I16x8 a) { return _mm_unpacklo_epi8(a, _mm_setzero_si128()); }
+inline I16x8 widenHiU8(I16x8 a) { return _mm_unpackhi_epi8(a, _mm_setzero_si128()); }
+inline I32x4 sub32(I32x4 a, I32x4 b) { return _mm_sub_epi32(a, b); }
+inline I32x4 bitAnd(I32x4 a, I32x4 b) { return _mm_and_si128(a, b); }
+inline I32x4 bitOr(I32x4 a, I32x4 b) { return _mm_or_si128(a, b); }
+/// Logical shifts of the 32-bit lanes.
+template <int kShift>
+inline I32x4 srl32(I32x4 a) {
+  return _mm_srli_epi32(a, kShift);
+}
+template <int kShift>
+inline I32x4 sll32(I32x4 a) {
+  return _mm_slli_epi32(a, kShift);
 }
 
 #else  // NEON (aarch64)
@@ -110,6 +150,43 @@ inline I32x4 sra32(I32x4 a) {
 }
 inline I16x8 pack32(I32x4 lo, I32x4 hi) { return vcombine_s16(vqmovn_s32(lo), vqmovn_s32(hi)); }
 inline int64_t sum32(I32x4 a) { return vaddlvq_s32(a); }
+inline void store32(int32_t* p, I32x4 a) { vst1q_s32(p, a); }
+inline I32x4 set32x4(int32_t a0, int32_t a1, int32_t a2, int32_t a3) {
+  const int32_t v[4] = {a0, a1, a2, a3};
+  return vld1q_s32(v);
+}
+inline I16x8 set16x8(uint16_t a0, uint16_t a1, uint16_t a2, uint16_t a3, uint16_t a4, uint16_t a5,
+                     uint16_t a6, uint16_t a7) {
+  uint16x8_t v = vdupq_n_u16(a0);
+  v = vsetq_lane_u16(a1, v, 1);
+  v = vsetq_lane_u16(a2, v, 2);
+  v = vsetq_lane_u16(a3, v, 3);
+  v = vsetq_lane_u16(a4, v, 4);
+  v = vsetq_lane_u16(a5, v, 5);
+  v = vsetq_lane_u16(a6, v, 6);
+  v = vsetq_lane_u16(a7, v, 7);
+  return vreinterpretq_s16_u16(v);
+}
+inline I16x8 widenLoU8(I16x8 a) {
+  return vreinterpretq_s16_u16(vmovl_u8(vget_low_u8(vreinterpretq_u8_s16(a))));
+}
+inline I16x8 widenHiU8(I16x8 a) {
+  return vreinterpretq_s16_u16(vmovl_high_u8(vreinterpretq_u8_s16(a)));
+}
+inline I32x4 sub32(I32x4 a, I32x4 b) { return vsubq_s32(a, b); }
+inline I32x4 bitAnd(I32x4 a, I32x4 b) { return vandq_s32(a, b); }
+inline I32x4 bitOr(I32x4 a, I32x4 b) { return vorrq_s32(a, b); }
+template <int kShift>
+inline I32x4 srl32(I32x4 a) {
+  return vreinterpretq_s32_u32(vshrq_n_u32(vreinterpretq_u32_s32(a), kShift));
+}
+template <int kShift>
+inline I32x4 sll32(I32x4 a) {
+  return vshlq_n_s32(a, kShift);
+}
+/// Reinterpretations between the lane widths (SSE2 has one register type for both).
+inline I16x8 as16(I32x4 a) { return vreinterpretq_s16_s32(a); }
+inline I32x4 as32(I16x8 a) { return vreinterpretq_s32_s16(a); }
 #endif
 
 }  // namespace epitrack::simd

@@ -1,6 +1,9 @@
 // The affine LK kernel with AVX2 (x86-64 only): compiled for AVX2 through the target attribute in
 // a baseline build and run only where the processor has it (lkHaveAvx2, checked once). Same
-// integers as lkAffineSumsScalar (algo/flow/lk_kernels.hpp), bit for bit.
+// integers as lkAffineSumsScalar (algo/flow/lk_kernels.hpp), bit for bit. 8 pixels per step, one
+// per int32 lane: the neighbours by byte shuffles of three row loads where a group of 8 warped
+// pixels spans at most 15 columns and 2 rows (shapes near the identity: almost always), else by
+// gathers; bilinear weights and products in int32 lanes.
 #include "algo/flow/lk_kernels.hpp"
 #include "algo/flow/simd_int16.hpp"
 
@@ -9,6 +12,7 @@
 #include <immintrin.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 
 namespace epitrack {
@@ -53,6 +57,8 @@ EPITRACK_AVX2 void affineSumsAvx2(ImageView<const uint8_t> image, const LkAffine
   // Bytes 0 and 1 of each gathered int32 (the pixel and its right neighbour) as two int16.
   const __m256i pair = _mm256_setr_epi8(0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1, 0,
                                         -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1);
+  // Shuffle control base: bytes 1 and 3 of each int32 zero (high bit), byte 2 one further.
+  const __m256i pair_base = _mm256_set1_epi32(static_cast<int32_t>(0x80018000u));
   const int tail = side - 8 * (groups - 1);  // pixels in the last group of a row
   const __m256i tail_mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(tail), lane);
   const __m256i all = _mm256_set1_epi32(-1);
@@ -70,8 +76,10 @@ EPITRACK_AVX2 void affineSumsAvx2(ImageView<const uint8_t> image, const LkAffine
   __m256i sq_lo = zero, sq_hi = zero;
   __m256i acc_e = zero;
   for (int v = 0; v < side; ++v) {
-    __m256i X = _mm256_add_epi32(_mm256_set1_epi32(warp.x + v * warp.xv), lane_x);
-    __m256i Y = _mm256_add_epi32(_mm256_set1_epi32(warp.y + v * warp.yv), lane_y);
+    int32_t xg = warp.x + v * warp.xv;  // the group's first pixel
+    int32_t yg = warp.y + v * warp.yv;
+    __m256i X = _mm256_add_epi32(_mm256_set1_epi32(xg), lane_x);
+    __m256i Y = _mm256_add_epi32(_mm256_set1_epi32(yg), lane_y);
     const int16_t* t = T + v * tstride;
     const int16_t* sx = Sx + v * tstride;
     const int16_t* sy = Sy + v * tstride;
@@ -80,13 +88,46 @@ EPITRACK_AVX2 void affineSumsAvx2(ImageView<const uint8_t> image, const LkAffine
     __m256i a_gx = zero, q_gx = zero, a_gy = zero, q_gy = zero, a_sq = zero;
     for (int j = 0; j < groups; ++j) {
       const __m256i mask = j + 1 < groups ? all : tail_mask;
-      const __m256i offset =
-          _mm256_add_epi32(_mm256_mullo_epi32(_mm256_srai_epi32(Y, kLkPosBits), stride),
-                           _mm256_srai_epi32(X, kLkPosBits));
-      const __m256i top =
-          _mm256_shuffle_epi8(_mm256_mask_i32gather_epi32(zero, top_row, offset, mask, 1), pair);
-      const __m256i bottom =
-          _mm256_shuffle_epi8(_mm256_mask_i32gather_epi32(zero, bottom_row, offset, mask, 1), pair);
+      // The four neighbours of each pixel as (left, right) int16 pairs of the top and bottom
+      // rows. Where the group's 8 pixels span at most 15 columns and 2 rows (near-identity
+      // shapes), from three 16-byte row loads and byte shuffles; else with gathers.
+      const int n = j + 1 < groups ? 8 : tail;
+      const int ix_a = xg >> kLkPosBits, ix_b = (xg + (n - 1) * warp.xu) >> kLkPosBits;
+      const int iy_a = yg >> kLkPosBits, iy_b = (yg + (n - 1) * warp.yu) >> kLkPosBits;
+      const int ix0 = std::min(ix_a, ix_b);
+      const int iy0 = std::min(iy_a, iy_b);
+      __m256i top, bottom;
+      if (std::abs(ix_b - ix_a) <= 14 && std::abs(iy_b - iy_a) <= 1 && ix0 + 16 <= image.width) {
+        const uint8_t* r0 = image.data + static_cast<std::ptrdiff_t>(iy0) * image.stride + ix0;
+        // The third row only matters when the group spans two rows (it then exists).
+        const int iy2 = std::min(iy0 + 2, image.height - 1);
+        const uint8_t* r2 = image.data + static_cast<std::ptrdiff_t>(iy2) * image.stride + ix0;
+        __m128i l0, l1, l2;
+        std::memcpy(&l0, r0, sizeof(l0));
+        std::memcpy(&l1, r0 + image.stride, sizeof(l1));
+        std::memcpy(&l2, r2, sizeof(l2));
+        // Control bytes (dx, -, dx + 1, -) per pixel: its two columns as int16 (dx <= 14).
+        const __m256i dx =
+            _mm256_sub_epi32(_mm256_srai_epi32(X, kLkPosBits), _mm256_set1_epi32(ix0));
+        const __m256i control =
+            _mm256_add_epi32(_mm256_add_epi32(dx, _mm256_slli_epi32(dx, 16)), pair_base);
+        // Pixels whose row is iy0 + 1 take rows iy0 + 1 and iy0 + 2.
+        const __m256i lower =
+            _mm256_cmpgt_epi32(_mm256_srai_epi32(Y, kLkPosBits), _mm256_set1_epi32(iy0));
+        const __m256i s0 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(l0), control);
+        const __m256i s1 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(l1), control);
+        const __m256i s2 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(l2), control);
+        top = _mm256_and_si256(_mm256_blendv_epi8(s0, s1, lower), mask);
+        bottom = _mm256_and_si256(_mm256_blendv_epi8(s1, s2, lower), mask);
+      } else {
+        const __m256i offset =
+            _mm256_add_epi32(_mm256_mullo_epi32(_mm256_srai_epi32(Y, kLkPosBits), stride),
+                             _mm256_srai_epi32(X, kLkPosBits));
+        top =
+            _mm256_shuffle_epi8(_mm256_mask_i32gather_epi32(zero, top_row, offset, mask, 1), pair);
+        bottom = _mm256_shuffle_epi8(_mm256_mask_i32gather_epi32(zero, bottom_row, offset, mask, 1),
+                                     pair);
+      }
       const __m256i fx = _mm256_and_si256(_mm256_srli_epi32(X, kCut), fraction);
       const __m256i fy = _mm256_and_si256(_mm256_srli_epi32(Y, kCut), fraction);
       const __m256i wx = _mm256_or_si256(_mm256_slli_epi32(fx, 16), _mm256_sub_epi32(one, fx));
@@ -112,6 +153,8 @@ EPITRACK_AVX2 void affineSumsAvx2(ImageView<const uint8_t> image, const LkAffine
       a_sq = _mm256_add_epi32(a_sq, _mm256_mullo_epi32(e, e));
       X = _mm256_add_epi32(X, step_x);
       Y = _mm256_add_epi32(Y, step_y);
+      xg += 8 * warp.xu;
+      yg += 8 * warp.yu;
     }
     addWiden(a_gx, P_gx_lo, P_gx_hi);
     addWiden(q_gx, Q_gx_lo, Q_gx_hi);

@@ -129,18 +129,81 @@ void PyramidalLk::setAffineHessian(int slot) {
   const std::size_t base = patchIndex(slot, 0);
   const int16_t* Sx = grad_x_.data() + base;
   const int16_t* Sy = grad_y_.data() + base;
-  Eigen::Matrix<double, 7, 7> H = Eigen::Matrix<double, 7, 7>::Zero();
-  Eigen::Matrix<double, 7, 1> J;
+  // Gauss-Newton Hessian sum J J^T over the window, J = [gx, gy, u gx, v gx, u gy, v gy, 32]
+  // (u, v from the centre; Baker & Matthews 2004 §3.2), from exact integer moments: per row the
+  // sums of q = gx^2, gx gy, gy^2 with weights 1, u, u^2 (and of gx, gy with 1, u), then over the
+  // rows with weights 1, v, v^2. Every entry is an integer below 2^53, so the doubles are exact.
+  int64_t m[3][6] = {};   // q; weights 1, u, v, u^2, u v, v^2
+  int64_t s1[2][3] = {};  // gx, gy; weights 1, u, v
   for (int v = 0; v < side_; ++v) {
+    int64_t r[3][3] = {};
+    int64_t rg[2][2] = {};
+    const int16_t* sx = Sx + v * tstride_;
+    const int16_t* sy = Sy + v * tstride_;
     for (int u = 0; u < side_; ++u) {
-      const double gx = Sx[v * tstride_ + u];
-      const double gy = Sy[v * tstride_ + u];
-      const double du = u - half_;
-      const double dv = v - half_;
-      J << gx, gy, du * gx, dv * gx, du * gy, dv * gy, static_cast<double>(1 << kValueBits);
-      H.selfadjointView<Eigen::Lower>().rankUpdate(J);
+      const int64_t du = u - half_;
+      const int32_t gx = sx[u];
+      const int32_t gy = sy[u];
+      const int64_t q[3] = {gx * gx, gx * gy, gy * gy};  // < 2^24 each
+      for (int i = 0; i < 3; ++i) {
+        r[i][0] += q[i];
+        r[i][1] += du * q[i];
+        r[i][2] += du * du * q[i];
+      }
+      rg[0][0] += gx;
+      rg[0][1] += du * gx;
+      rg[1][0] += gy;
+      rg[1][1] += du * gy;
+    }
+    const int64_t dv = v - half_;
+    for (int i = 0; i < 3; ++i) {
+      m[i][0] += r[i][0];
+      m[i][1] += r[i][1];
+      m[i][2] += dv * r[i][0];
+      m[i][3] += r[i][2];
+      m[i][4] += dv * r[i][1];
+      m[i][5] += dv * dv * r[i][0];
+    }
+    for (int k = 0; k < 2; ++k) {
+      s1[k][0] += rg[k][0];
+      s1[k][1] += rg[k][1];
+      s1[k][2] += dv * rg[k][0];
     }
   }
+  enum { kXX, kXY, kYY };
+  enum { k1, kU, kV, kUU, kUV, kVV };
+  const auto f = [](int64_t x) { return static_cast<double>(x); };
+  const double c = 1 << kValueBits;  // the bias column of J
+  Eigen::Matrix<double, 7, 7> H;
+  // Lower triangle, row by row; column 6 (the bias) last.
+  H(0, 0) = f(m[kXX][k1]);
+  H(1, 0) = f(m[kXY][k1]);
+  H(1, 1) = f(m[kYY][k1]);
+  H(2, 0) = f(m[kXX][kU]);
+  H(2, 1) = f(m[kXY][kU]);
+  H(2, 2) = f(m[kXX][kUU]);
+  H(3, 0) = f(m[kXX][kV]);
+  H(3, 1) = f(m[kXY][kV]);
+  H(3, 2) = f(m[kXX][kUV]);
+  H(3, 3) = f(m[kXX][kVV]);
+  H(4, 0) = f(m[kXY][kU]);
+  H(4, 1) = f(m[kYY][kU]);
+  H(4, 2) = f(m[kXY][kUU]);
+  H(4, 3) = f(m[kXY][kUV]);
+  H(4, 4) = f(m[kYY][kUU]);
+  H(5, 0) = f(m[kXY][kV]);
+  H(5, 1) = f(m[kYY][kV]);
+  H(5, 2) = f(m[kXY][kUV]);
+  H(5, 3) = f(m[kXY][kVV]);
+  H(5, 4) = f(m[kYY][kUV]);
+  H(5, 5) = f(m[kYY][kVV]);
+  H(6, 0) = c * f(s1[0][k1]);
+  H(6, 1) = c * f(s1[1][k1]);
+  H(6, 2) = c * f(s1[0][kU]);
+  H(6, 3) = c * f(s1[0][kV]);
+  H(6, 4) = c * f(s1[1][kU]);
+  H(6, 5) = c * f(s1[1][kV]);
+  H(6, 6) = c * c * static_cast<double>(area_);
   H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
   // Damping of the four shape parameters (Tikhonov, towards no change): at a corner whose edges
   // pass through the centre, stretching along an edge is unobservable and an undamped step in

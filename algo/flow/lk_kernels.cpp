@@ -327,12 +327,9 @@ void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, 
 void lkAffineSumsVector(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                         const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                         LkAffineSums& out) {
-  static const bool avx2 = lkHaveAvx2();
-  if (avx2) {
-    lkAffineSumsAvx2(image, warp, side, T, Sx, Sy, tstride, out);
-  } else {
-    lkAffineSums128(image, warp, side, T, Sx, Sy, tstride, out);
-  }
+  // Chosen once; every variant gives the same sums.
+  static const auto kernel = lkHaveAvx2() ? lkAffineSumsAvx2 : lkAffineSums128;
+  kernel(image, warp, side, T, Sx, Sy, tstride, out);
 }
 
 const char* lkAffineVectorIsa() { return lkHaveAvx2() ? "avx2" : EPITRACK_LK_SIMD_NAME; }

@@ -127,9 +127,9 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
                      LkAffineSums& out);
 /// True when this machine runs lkAffineSumsAvx2 (x86-64 with AVX2, checked once at run time).
 bool lkHaveAvx2();
-/// The same with AVX2 gathers (8 pixels per step); lkAffineSums128 where AVX2 is missing (see
-/// lkHaveAvx2), for windows beyond 80, or when a gather's 4-byte read could pass the image's last
-/// row.
+/// The same with AVX2, 8 pixels per step (byte shuffles of the window's rows, or gathers);
+/// lkAffineSums128 where AVX2 is missing (see lkHaveAvx2), for windows beyond 80, or when a
+/// gather's 4-byte read could pass the end of the image's last row.
 void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                       const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                       LkAffineSums& out);

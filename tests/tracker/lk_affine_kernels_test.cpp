@@ -1,8 +1,8 @@
-// The affine LK kernels (128-bit SSE2 / NEON, AVX2 where the processor has it) against the scalar
-// reference: the same sums, bit for bit, for random warps (near the identity, rotated, scaled,
-// sheared, mirrored), windows of 1-80 pixels, the extreme values of every fixed-point format, and
-// windows touching the image's last row and column (each image holds exactly the pixels the
-// kernels may read, so a read outside it shows under the sanitizers).
+// The affine LK kernels (128-bit SSE2 / NEON, AVX2 where the processor has it)
+// against the scalar reference: the same sums, bit for bit, for random warps (near the identity,
+// rotated, scaled, sheared, mirrored), windows of 1-80 pixels, the extreme values of every
+// fixed-point format, and windows touching the image's last row and column (each image holds
+// exactly the pixels the kernels may read, so a read outside it shows under the sanitizers).
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -96,8 +96,13 @@ AffineCase makeCase(SplitMix64& rng, int side, int mode) {
   }
   const int left = static_cast<int>(rng.below(3));
   const int top = static_cast<int>(rng.below(3));
-  const int right = rng.below(2) == 0 ? 0 : static_cast<int>(rng.below(6));
-  const int bottom = rng.below(2) == 0 ? 0 : static_cast<int>(rng.below(3));
+  // Margins: none, a few pixels, or enough for the AVX2 kernel's row loads (16 columns, 3 rows).
+  const auto margin = [&](int few, int enough) {
+    const uint32_t k = rng.below(3);
+    return k == 0 ? 0 : k == 1 ? static_cast<int>(rng.below(static_cast<uint32_t>(few))) : enough;
+  };
+  const int right = margin(6, 16 + static_cast<int>(rng.below(4)));
+  const int bottom = margin(3, 3 + static_cast<int>(rng.below(3)));
   c.warp.x += (left - ix_min) * 65536;
   c.warp.y += (top - iy_min) * 65536;
   c.width = left + (ix_max - ix_min) + 2 + right;

@@ -1,7 +1,8 @@
 #pragma once
 
-// The few 128-bit integer operations the Lucas-Kanade kernels need, on SSE2 (every x86-64) and
-// NEON (every aarch64), so that a kernel is written once (algo/flow/lk_kernels.cpp). Every
+// The few 128-bit integer operations the Lucas-Kanade kernels (algo/flow/lk_kernels.cpp) and the
+// pyramid (algo/image/pyramid.cpp) need, on SSE2 (every x86-64) and NEON (every aarch64), so that
+// a kernel is written once. Every
 // operation is exact integer arithmetic with a defined result per lane, so a vector kernel gives
 // the same sums as the scalar reference, bit for bit, on both instruction sets.
 // EPITRACK_LK_SIMD is 1 when one of them is available, else 0 (the scalar kernels only).
@@ -78,6 +79,23 @@ inline I16x8 pack32(I32x4 lo, I32x4 hi) { return _mm_packs_epi32(lo, hi); }
 /// Reinterpretations between the lane widths (SSE2 has one register type for both).
 inline I16x8 as16(I32x4 a) { return a; }
 inline I32x4 as32(I16x8 a) { return a; }
+/// 16 bytes (unaligned), as the raw register (see widenLoU8 / widenHiU8).
+inline I16x8 loadU8x16(const uint8_t* p) {
+  I16x8 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+inline void storeI16(int16_t* p, I16x8 a) { std::memcpy(p, &a, sizeof(a)); }
+inline I16x8 add16(I16x8 a, I16x8 b) { return _mm_add_epi16(a, b); }
+template <int kShift>
+inline I16x8 sll16(I16x8 a) {
+  return _mm_slli_epi16(a, kShift);
+}
+/// The 8 int16 lanes narrowed to bytes with unsigned saturation, into 8 bytes of memory.
+inline void storeU8x8(uint8_t* p, I16x8 a) {
+  const int64_t bits = _mm_cvtsi128_si64(_mm_packus_epi16(a, a));
+  std::memcpy(p, &bits, 8);
+}
 /// The sum of the 4 lanes, exact in int64.
 inline int64_t sum32(I32x4 a) {
   int32_t lanes[4];
@@ -187,6 +205,14 @@ inline I32x4 sll32(I32x4 a) {
 /// Reinterpretations between the lane widths (SSE2 has one register type for both).
 inline I16x8 as16(I32x4 a) { return vreinterpretq_s16_s32(a); }
 inline I32x4 as32(I16x8 a) { return vreinterpretq_s32_s16(a); }
+inline I16x8 loadU8x16(const uint8_t* p) { return vreinterpretq_s16_u8(vld1q_u8(p)); }
+inline void storeI16(int16_t* p, I16x8 a) { vst1q_s16(p, a); }
+inline I16x8 add16(I16x8 a, I16x8 b) { return vaddq_s16(a, b); }
+template <int kShift>
+inline I16x8 sll16(I16x8 a) {
+  return vshlq_n_s16(a, kShift);
+}
+inline void storeU8x8(uint8_t* p, I16x8 a) { vst1_u8(p, vqmovun_s16(a)); }
 #endif
 
 }  // namespace epitrack::simd

@@ -79,6 +79,11 @@ void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int si
         p1 = loadWidenU8(r0 + u + 1);
         q0 = loadWidenU8(r1 + u);
         q1 = loadWidenU8(r1 + u + 1);
+      } else if (side >= 8) {  // the 8 bytes ending at the window's last column are inside it
+        p0 = loadWidenU8Tail(r0 + u, n);
+        p1 = loadWidenU8Tail(r0 + u + 1, n);
+        q0 = loadWidenU8Tail(r1 + u, n);
+        q1 = loadWidenU8Tail(r1 + u + 1, n);
       } else {
         p0 = loadWidenU8Partial(r0 + u, n);
         p1 = loadWidenU8Partial(r0 + u + 1, n);
@@ -232,6 +237,11 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
           p1 = loadWidenU8(r0 + 1);
           q0 = loadWidenU8(r1);
           q1 = loadWidenU8(r1 + 1);
+        } else if (ix + n >= 8) {  // the 8 bytes ending at the last column are in the row
+          p0 = loadWidenU8Tail(r0, n);
+          p1 = loadWidenU8Tail(r0 + 1, n);
+          q0 = loadWidenU8Tail(r1, n);
+          q1 = loadWidenU8Tail(r1 + 1, n);
         } else {
           p0 = loadWidenU8Partial(r0, n);
           p1 = loadWidenU8Partial(r0 + 1, n);

@@ -7,6 +7,7 @@
 // the same sums as the scalar reference, bit for bit, on both instruction sets.
 // EPITRACK_LK_SIMD is 1 when one of them is available, else 0 (the scalar kernels only).
 
+#include <bit>
 #include <cstdint>
 #include <cstring>
 
@@ -49,6 +50,15 @@ inline I16x8 loadWidenU8Partial(const uint8_t* p, int n) {
   int64_t bits = 0;
   std::memcpy(&bits, p, static_cast<std::size_t>(n));
   return _mm_unpacklo_epi8(_mm_cvtsi64_si128(bits), _mm_setzero_si128());
+}
+/// The same as loadWidenU8Partial, reading the 8 bytes that end at p[n - 1] instead (they must
+/// be readable): one load and a shift instead of a copy of n bytes.
+inline I16x8 loadWidenU8Tail(const uint8_t* p, int n) {
+  static_assert(std::endian::native == std::endian::little);
+  uint64_t bits = 0;
+  std::memcpy(&bits, p + n - 8, 8);
+  bits >>= 8 * (8 - n);
+  return _mm_unpacklo_epi8(_mm_cvtsi64_si128(static_cast<int64_t>(bits)), _mm_setzero_si128());
 }
 inline I16x8 loadI16(const int16_t* p) {
   I16x8 v;
@@ -145,6 +155,13 @@ inline I16x8 loadWidenU8Partial(const uint8_t* p, int n) {
   uint8_t bytes[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   std::memcpy(bytes, p, static_cast<std::size_t>(n));
   return vreinterpretq_s16_u16(vmovl_u8(vld1_u8(bytes)));
+}
+inline I16x8 loadWidenU8Tail(const uint8_t* p, int n) {
+  static_assert(std::endian::native == std::endian::little);
+  uint64_t bits = 0;
+  std::memcpy(&bits, p + n - 8, 8);
+  bits >>= 8 * (8 - n);
+  return vreinterpretq_s16_u16(vmovl_u8(vcreate_u8(bits)));
 }
 inline I16x8 loadI16(const int16_t* p) { return vld1q_s16(p); }
 inline I16x8 zipLo16(I16x8 a, I16x8 b) { return vzip1q_s16(a, b); }

@@ -1,12 +1,13 @@
 #pragma once
 
 // The few 128-bit integer operations the Lucas-Kanade kernels (algo/flow/lk_kernels.cpp) and the
-// pyramid (algo/image/pyramid.cpp) need, on SSE2 (every x86-64) and NEON (every aarch64), so that
-// a kernel is written once. Every
+// image core (pyramid, Scharr gradients) and the Shi-Tomasi detector need, on SSE2 (every x86-64)
+// and NEON (every aarch64), so that a kernel is written once. Every
 // operation is exact integer arithmetic with a defined result per lane, so a vector kernel gives
 // the same sums as the scalar reference, bit for bit, on both instruction sets.
 // EPITRACK_LK_SIMD is 1 when one of them is available, else 0 (the scalar kernels only).
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <cstring>
@@ -105,6 +106,42 @@ inline I16x8 sll16(I16x8 a) {
 inline void storeU8x8(uint8_t* p, I16x8 a) {
   const int64_t bits = _mm_cvtsi128_si64(_mm_packus_epi16(a, a));
   std::memcpy(p, &bits, 8);
+}
+/// The low 16 bits of each product (exact when it fits int16).
+inline I16x8 mul16(I16x8 a, I16x8 b) { return _mm_mullo_epi16(a, b); }
+/// The exact int32 products of lanes 0-3 (lo) and 4-7 (hi).
+inline void mulWiden16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
+  const __m128i l = _mm_mullo_epi16(a, b);
+  const __m128i h = _mm_mulhi_epi16(a, b);
+  lo = _mm_unpacklo_epi16(l, h);
+  hi = _mm_unpackhi_epi16(l, h);
+}
+inline I32x4 loadI32(const int32_t* p) {
+  I32x4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+
+// 4 x float, IEEE single precision with round-to-nearest (the same results as scalar float
+// arithmetic without contraction, -ffp-contract=off).
+using F32x4 = __m128;
+inline F32x4 toF32(I32x4 a) { return _mm_cvtepi32_ps(a); }  // rounded to nearest, as a cast
+inline F32x4 setF32(float a) { return _mm_set1_ps(a); }
+inline F32x4 loadF32(const float* p) { return _mm_loadu_ps(p); }
+inline void storeF32(float* p, F32x4 a) { _mm_storeu_ps(p, a); }
+inline F32x4 addF32(F32x4 a, F32x4 b) { return _mm_add_ps(a, b); }
+inline F32x4 subF32(F32x4 a, F32x4 b) { return _mm_sub_ps(a, b); }
+inline F32x4 mulF32(F32x4 a, F32x4 b) { return _mm_mul_ps(a, b); }
+inline F32x4 sqrtF32(F32x4 a) { return _mm_sqrt_ps(a); }  // correctly rounded
+inline F32x4 maxF32(F32x4 a, F32x4 b) { return _mm_max_ps(a, b); }
+/// Bit i set when lane i of a >= b (a > b); the comparisons of non-NaN values.
+inline int maskGeF32(F32x4 a, F32x4 b) { return _mm_movemask_ps(_mm_cmpge_ps(a, b)); }
+inline int maskGtF32(F32x4 a, F32x4 b) { return _mm_movemask_ps(_mm_cmpgt_ps(a, b)); }
+/// The largest lane.
+inline float maxLaneF32(F32x4 a) {
+  float l[4];
+  _mm_storeu_ps(l, a);
+  return std::max(std::max(l[0], l[1]), std::max(l[2], l[3]));
 }
 /// The sum of the 4 lanes, exact in int64.
 inline int64_t sum32(I32x4 a) {
@@ -230,6 +267,30 @@ inline I16x8 sll16(I16x8 a) {
   return vshlq_n_s16(a, kShift);
 }
 inline void storeU8x8(uint8_t* p, I16x8 a) { vst1_u8(p, vqmovun_s16(a)); }
+inline I16x8 mul16(I16x8 a, I16x8 b) { return vmulq_s16(a, b); }
+inline void mulWiden16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
+  lo = vmull_s16(vget_low_s16(a), vget_low_s16(b));
+  hi = vmull_high_s16(a, b);
+}
+inline I32x4 loadI32(const int32_t* p) { return vld1q_s32(p); }
+
+using F32x4 = float32x4_t;
+inline F32x4 toF32(I32x4 a) { return vcvtq_f32_s32(a); }
+inline F32x4 setF32(float a) { return vdupq_n_f32(a); }
+inline F32x4 loadF32(const float* p) { return vld1q_f32(p); }
+inline void storeF32(float* p, F32x4 a) { vst1q_f32(p, a); }
+inline F32x4 addF32(F32x4 a, F32x4 b) { return vaddq_f32(a, b); }
+inline F32x4 subF32(F32x4 a, F32x4 b) { return vsubq_f32(a, b); }
+inline F32x4 mulF32(F32x4 a, F32x4 b) { return vmulq_f32(a, b); }
+inline F32x4 sqrtF32(F32x4 a) { return vsqrtq_f32(a); }
+inline F32x4 maxF32(F32x4 a, F32x4 b) { return vmaxq_f32(a, b); }
+inline int laneBits(uint32x4_t m) {
+  const uint32_t bits[4] = {1, 2, 4, 8};
+  return static_cast<int>(vaddvq_u32(vandq_u32(m, vld1q_u32(bits))));
+}
+inline int maskGeF32(F32x4 a, F32x4 b) { return laneBits(vcgeq_f32(a, b)); }
+inline int maskGtF32(F32x4 a, F32x4 b) { return laneBits(vcgtq_f32(a, b)); }
+inline float maxLaneF32(F32x4 a) { return vmaxvq_f32(a); }
 #endif
 
 }  // namespace epitrack::simd

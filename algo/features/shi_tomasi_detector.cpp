@@ -375,17 +375,21 @@ ShiTomasiDetector::Status ShiTomasiDetector::detect(ImageView<const uint8_t> ima
     n = options_.vector_kernels ? rowMaximaVector(y, b, floor_response, m, n)
                                 : rowMaximaScalar(y, b, width_ - b, floor_response, m, n);
   }
-  std::sort(cand, cand + n, [](const Corner& a, const Corner& c) {
-    if (a.response != c.response) return a.response > c.response;
-    if (a.y != c.y) return a.y < c.y;
-    return a.x < c.x;
-  });
+  // Strongest first (then raster order: a strict order, so the same sequence as a full sort),
+  // from a heap: usually only a few hundred of the candidates are looked at.
+  const auto after = [](const Corner& a, const Corner& c) {
+    if (a.response != c.response) return a.response < c.response;
+    if (a.y != c.y) return a.y > c.y;
+    return a.x > c.x;
+  };
+  std::make_heap(cand, cand + n, after);
 
   grid_.clear();
   for (const Point2f& p : existing) grid_.insert(p.x, p.y);
   last_quality_ = 0.0;
-  for (std::size_t i = 0; i < n && found < limit; ++i) {
-    const Corner& c = cand[i];
+  for (std::size_t left = n; left > 0 && found < limit; --left) {
+    std::pop_heap(cand, cand + left, after);
+    const Corner c = cand[left - 1];
     if (!grid_.isFree(c.x, c.y)) continue;
     grid_.insert(c.x, c.y);
     Corner refined = c;

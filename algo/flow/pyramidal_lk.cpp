@@ -6,6 +6,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
+#include "algo/flow/simd_int16.hpp"
+
 namespace epitrack {
 
 const char* lkStatusName(LkStatus status) {
@@ -118,6 +120,94 @@ bool fixedWarp(double cx, double cy, const double (&A)[4], int half, int width, 
     }
   }
   return true;
+}
+
+}  // namespace
+
+namespace {
+
+/// Window sums of a template level (exact integers): gradient products and sums, intensities.
+struct TemplateSums {
+  int64_t gxx = 0, gxy = 0, gyy = 0, gx = 0, gy = 0, t = 0, tt = 0;
+};
+
+/// One template row: `src` the image pixel above-left of the row's first pixel (rows of
+/// `stride`, side + 2 columns and 3 rows are read), out the values (<< kLkValueBits), the Scharr
+/// gradients (Scharr 2000, unnormalised: 32 x the intensity gradient) and zeros up to `tstride`.
+void templateRow(const uint8_t* src, std::ptrdiff_t stride, int side, int tstride, int16_t* T,
+                 int16_t* Sx, int16_t* Sy, TemplateSums& sums) {
+  const uint8_t* r0 = src;
+  const uint8_t* r1 = src + stride;
+  const uint8_t* r2 = src + 2 * stride;
+  int u = 0;
+#if EPITRACK_LK_SIMD
+  {
+    using namespace simd;
+    // Pairs of columns per int32 lane: products <= 2 * 4080^2 < 2^25, 3 groups of 8 at most
+    // before the row's sums go to int64 (each sum below 2^27).
+    const I16x8 three = set16(3), ten = set16(10), ones = set16(1);
+    I32x4 gxx = zero32(), gxy = zero32(), gyy = zero32(), gx = zero32(), gy = zero32();
+    I32x4 t = zero32(), tt = zero32();
+    for (; u + 8 <= side; u += 8) {
+      // Columns u - 1 .. u + 8 of the three rows (src is one column left of the row).
+      const I16x8 ul = loadWidenU8(r0 + u), uc = loadWidenU8(r0 + u + 1),
+                  ur = loadWidenU8(r0 + u + 2);
+      const I16x8 ml = loadWidenU8(r1 + u), mc = loadWidenU8(r1 + u + 1),
+                  mr = loadWidenU8(r1 + u + 2);
+      const I16x8 dl = loadWidenU8(r2 + u), dc = loadWidenU8(r2 + u + 1),
+                  dr = loadWidenU8(r2 + u + 2);
+      const I16x8 ggx =
+          add16(mul16(sub16(add16(ur, dr), add16(ul, dl)), three), mul16(sub16(mr, ml), ten));
+      const I16x8 ggy =
+          add16(mul16(add16(sub16(dl, ul), sub16(dr, ur)), three), mul16(sub16(dc, uc), ten));
+      storeI16(T + u, sll16<kLkValueBits>(mc));
+      storeI16(Sx + u, ggx);
+      storeI16(Sy + u, ggy);
+      gxx = add32(gxx, madd(ggx, ggx));
+      gxy = add32(gxy, madd(ggx, ggy));
+      gyy = add32(gyy, madd(ggy, ggy));
+      gx = add32(gx, madd(ggx, ones));
+      gy = add32(gy, madd(ggy, ones));
+      t = add32(t, madd(mc, ones));
+      tt = add32(tt, madd(mc, mc));
+      if (u % 24 == 16) {  // after 3 groups
+        sums.gxx += sum32(gxx);
+        sums.gxy += sum32(gxy);
+        sums.gyy += sum32(gyy);
+        gxx = gxy = gyy = zero32();
+      }
+    }
+    sums.gxx += sum32(gxx);
+    sums.gxy += sum32(gxy);
+    sums.gyy += sum32(gyy);
+    sums.gx += sum32(gx);
+    sums.gy += sum32(gy);
+    sums.t += sum32(t);
+    sums.tt += sum32(tt);
+  }
+#endif
+  for (; u < side; ++u) {
+    const int xx = u + 1;
+    const int gx = 3 * (r0[xx + 1] - r0[xx - 1]) + 10 * (r1[xx + 1] - r1[xx - 1]) +
+                   3 * (r2[xx + 1] - r2[xx - 1]);
+    const int gy =
+        3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
+    T[u] = static_cast<int16_t>(r1[xx] << kLkValueBits);
+    Sx[u] = static_cast<int16_t>(gx);
+    Sy[u] = static_cast<int16_t>(gy);
+    sums.gxx += gx * gx;
+    sums.gxy += gx * gy;
+    sums.gyy += gy * gy;
+    sums.gx += gx;
+    sums.gy += gy;
+    sums.t += r1[xx];
+    sums.tt += r1[xx] * r1[xx];
+  }
+  for (; u < tstride; ++u) {  // the vector kernels' zero padding
+    T[u] = 0;
+    Sx[u] = 0;
+    Sy[u] = 0;
+  }
 }
 
 }  // namespace
@@ -257,38 +347,17 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     int16_t* T = value_.data() + base;
     int16_t* Sx = grad_x_.data() + base;
     int16_t* Sy = grad_y_.data() + base;
-    double sxx = 0.0, sxy = 0.0, syy = 0.0, sx = 0.0, sy = 0.0, st = 0.0, stt = 0.0;
+    TemplateSums sums;
     for (int v = 0; v < side_; ++v) {
       const int yy = cy - half_ + v;
-      const uint8_t* r0 = img.row(yy - 1);
-      const uint8_t* r1 = img.row(yy);
-      const uint8_t* r2 = img.row(yy + 1);
-      for (int u = 0; u < side_; ++u) {
-        const int xx = cx - half_ + u;
-        // Scharr 2000 kernel, unnormalised (32 x the intensity gradient).
-        const int gx = 3 * (r0[xx + 1] - r0[xx - 1]) + 10 * (r1[xx + 1] - r1[xx - 1]) +
-                       3 * (r2[xx + 1] - r2[xx - 1]);
-        const int gy =
-            3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
-        const int i = v * tstride_ + u;
-        T[i] = static_cast<int16_t>(r1[xx] << kValueBits);
-        st += r1[xx];
-        stt += r1[xx] * r1[xx];
-        Sx[i] = static_cast<int16_t>(gx);
-        Sy[i] = static_cast<int16_t>(gy);
-        sxx += gx * gx;
-        sxy += gx * gy;
-        syy += gy * gy;
-        sx += gx;
-        sy += gy;
-      }
-      for (int u = side_; u < tstride_; ++u) {  // the vector kernels' zero padding
-        const int i = v * tstride_ + u;
-        T[i] = 0;
-        Sx[i] = 0;
-        Sy[i] = 0;
-      }
+      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(tstride_);
+      templateRow(img.row(yy - 1) + (cx - half_ - 1), img.stride, side_, tstride_, T + i, Sx + i,
+                  Sy + i, sums);
     }
+    const double sxx = static_cast<double>(sums.gxx), sxy = static_cast<double>(sums.gxy);
+    const double syy = static_cast<double>(sums.gyy), sx = static_cast<double>(sums.gx);
+    const double sy = static_cast<double>(sums.gy), st = static_cast<double>(sums.t);
+    const double stt = static_cast<double>(sums.tt);
     // Gauss-Newton Hessian of the residual e = I(W(x; p)) - T(x) - b over [dx, dy, b], with the
     // Jacobian row [Sx, Sy, 32] in the units of e (1/32 gray levels); Baker & Matthews 2004 eq. 36.
     const double n = static_cast<double>(area_);
@@ -296,15 +365,21 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     // relative to it, so one threshold serves faint and strong corners (gain normalisation).
     lt.contrast = std::sqrt(std::max(stt / n - (st / n) * (st / n), 1.0));
     if (l == 0) {
-      double ct = 0.0, ctt = 0.0;
+      // The same over the residual's central window (the whole window: the sums above).
       const int r = residual_radius_;
-      for (int v = half_ - r; v <= half_ + r; ++v) {
-        for (int u = half_ - r; u <= half_ + r; ++u) {
-          const double value = T[v * tstride_ + u] >> kValueBits;
-          ct += value;
-          ctt += value * value;
+      int64_t ict = sums.t, ictt = sums.tt;
+      if (r < half_) {
+        ict = 0;
+        ictt = 0;
+        for (int v = half_ - r; v <= half_ + r; ++v) {
+          for (int u = half_ - r; u <= half_ + r; ++u) {
+            const int value = T[v * tstride_ + u] >> kValueBits;
+            ict += value;
+            ictt += value * value;
+          }
         }
       }
+      const double ct = static_cast<double>(ict), ctt = static_cast<double>(ictt);
       const double m = static_cast<double>((2 * r + 1) * (2 * r + 1));
       lt.centre_contrast = std::sqrt(std::max(ctt / m - (ct / m) * (ct / m), 1.0));
     }

@@ -327,9 +327,15 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
 
 #if !EPITRACK_LK_AVX2
 bool lkHaveAvx2() { return false; }
+bool lkHaveAvx512() { return false; }
 void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                       const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                       LkAffineSums& out) {
+  lkAffineSums128(image, warp, side, T, Sx, Sy, tstride, out);
+}
+void lkAffineSumsAvx512(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out) {
   lkAffineSums128(image, warp, side, T, Sx, Sy, tstride, out);
 }
 #endif
@@ -338,10 +344,14 @@ void lkAffineSumsVector(ImageView<const uint8_t> image, const LkAffineWarp& warp
                         const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                         LkAffineSums& out) {
   // Chosen once; every variant gives the same sums.
-  static const auto kernel = lkHaveAvx2() ? lkAffineSumsAvx2 : lkAffineSums128;
+  static const auto kernel = lkHaveAvx512() ? lkAffineSumsAvx512
+                             : lkHaveAvx2() ? lkAffineSumsAvx2
+                                            : lkAffineSums128;
   kernel(image, warp, side, T, Sx, Sy, tstride, out);
 }
 
-const char* lkAffineVectorIsa() { return lkHaveAvx2() ? "avx2" : EPITRACK_LK_SIMD_NAME; }
+const char* lkAffineVectorIsa() {
+  return lkHaveAvx512() ? "avx512" : lkHaveAvx2() ? "avx2" : EPITRACK_LK_SIMD_NAME;
+}
 
 }  // namespace epitrack

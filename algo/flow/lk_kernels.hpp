@@ -133,11 +133,18 @@ bool lkHaveAvx2();
 void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                       const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                       LkAffineSums& out);
+/// True when this machine also has AVX-512 F, BW, VL and DQ (lkAffineSumsAvx512).
+bool lkHaveAvx512();
+/// The AVX2 kernel's method on two template rows per 512-bit step; lkAffineSumsAvx2 where
+/// AVX-512 is missing, lkAffineSums128 where the AVX2 kernel would use it.
+void lkAffineSumsAvx512(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
 /// The fastest of the above on this machine (chosen once).
 void lkAffineSumsVector(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                         const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                         LkAffineSums& out);
-/// "avx2", "sse2", "neon" or "scalar": what lkAffineSumsVector uses on this machine.
+/// "avx512", "avx2", "sse2", "neon" or "scalar": what lkAffineSumsVector uses on this machine.
 const char* lkAffineVectorIsa();
 
 }  // namespace epitrack

@@ -5,6 +5,7 @@
 // pixels spans at most 15 columns and 2 rows (shapes near the identity, away from the right and
 // bottom edges: almost always), else by gathers; bilinear weights and products in int32 lanes.
 #include "algo/flow/lk_kernels.hpp"
+#include "algo/flow/lk_kernels_x86.hpp"
 #include "algo/flow/simd_int16.hpp"
 
 #if EPITRACK_LK_AVX2
@@ -230,18 +231,6 @@ EPITRACK_AVX2_INLINE void affineBody(ImageView<const uint8_t> image, const LkAff
   out = sums;
 }
 
-/// True when every group of 8 pixels spans at most 15 columns and 2 rows whose 16 bytes from the
-/// group's leftmost column lie inside the image (the shuffle path of `group`): a step of
-/// 7 |xu| < 14 pixels and 7 |yu| < 1 pixel over a group, the window 16 columns and 3 rows from
-/// the right and bottom edges (the third row is read even when unused).
-bool shuffleFits(ImageView<const uint8_t> image, const LkAffineWarp& warp, int32_t x_max,
-                 int32_t y_max) {
-  const int64_t group_x = 7 * static_cast<int64_t>(warp.xu < 0 ? -warp.xu : warp.xu);
-  const int64_t group_y = 7 * static_cast<int64_t>(warp.yu < 0 ? -warp.yu : warp.yu);
-  return group_x < (14 << kLkPosBits) && group_y < (1 << kLkPosBits) &&
-         (x_max >> kLkPosBits) + 16 <= image.width && (y_max >> kLkPosBits) + 3 <= image.height;
-}
-
 EPITRACK_AVX2 void affineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp,
                                   int side, const int16_t* T, const int16_t* Sx, const int16_t* Sy,
                                   int tstride, LkAffineSums& out, bool shuffle) {
@@ -263,10 +252,21 @@ bool lkHaveAvx2() {
   return have;
 }
 
-namespace {
+namespace x86 {
 
-/// The kernels' common entry: the valid domain and which path, or false for lkAffineSums128.
-bool avxPlan(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side, bool& shuffle) {
+/// True when every group of 8 pixels spans at most 15 columns and 2 rows whose 16 bytes from the
+/// group's leftmost column lie inside the image (the shuffle path of `group`): a step of
+/// 7 |xu| < 14 pixels and 7 |yu| < 1 pixel over a group, the window 16 columns and 3 rows from
+/// the right and bottom edges (the third row is read even when unused).
+static bool shuffleFits(ImageView<const uint8_t> image, const LkAffineWarp& warp, int32_t x_max,
+                        int32_t y_max) {
+  const int64_t group_x = 7 * static_cast<int64_t>(warp.xu < 0 ? -warp.xu : warp.xu);
+  const int64_t group_y = 7 * static_cast<int64_t>(warp.yu < 0 ? -warp.yu : warp.yu);
+  return group_x < (14 << kLkPosBits) && group_y < (1 << kLkPosBits) &&
+         (x_max >> kLkPosBits) + 16 <= image.width && (y_max >> kLkPosBits) + 3 <= image.height;
+}
+
+bool affinePlan(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side, bool& shuffle) {
   // n <= 10 groups per row (the int32 row sums); the gathers read 4 bytes at each pixel, 2 beyond
   // its right neighbour: not past the end of the image's last row.
   constexpr int kMaxSide = 80;
@@ -280,13 +280,13 @@ bool avxPlan(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
   return shuffle || !last_row || (x_max >> kLkPosBits) + 3 < image.width;
 }
 
-}  // namespace
+}  // namespace x86
 
 void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                       const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                       LkAffineSums& out) {
   bool shuffle = false;
-  if (!lkHaveAvx2() || !avxPlan(image, warp, side, shuffle)) {
+  if (!lkHaveAvx2() || !x86::affinePlan(image, warp, side, shuffle)) {
     lkAffineSums128(image, warp, side, T, Sx, Sy, tstride, out);
     return;
   }

@@ -1,4 +1,4 @@
-// The affine LK kernels (128-bit SSE2 / NEON, AVX2 where the processor has it)
+// The affine LK kernels (128-bit SSE2 / NEON, AVX2 and AVX-512 where the processor has them)
 // against the scalar reference: the same sums, bit for bit, for random warps (near the identity,
 // rotated, scaled, sheared, mirrored), windows of 1-80 pixels, the extreme values of every
 // fixed-point format, and windows touching the image's last row and column (each image holds
@@ -153,18 +153,21 @@ TEST_CASE("The affine LK kernels give the scalar kernel's sums bit for bit",
       const int mode = k % 5 == 1 ? 1 : k % 5 == 3 ? 2 : 0;
       const AffineCase c = makeCase(rng, side, mode);
       const epitrack::ImageView<const uint8_t> image(c.image.data(), c.width, c.height, c.stride);
-      LkAffineSums scalar, v128, avx2, best;
+      LkAffineSums scalar, v128, avx2, avx512, best;
       epitrack::lkAffineSumsScalar(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
                                    c.tstride, scalar);
       epitrack::lkAffineSums128(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
                                 c.tstride, v128);
       epitrack::lkAffineSumsAvx2(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
                                  c.tstride, avx2);
+      epitrack::lkAffineSumsAvx512(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
+                                   c.tstride, avx512);
       epitrack::lkAffineSumsVector(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
                                    c.tstride, best);
       INFO("side " << side << " case " << k << " mode " << mode << ": scalar " << describe(scalar));
       if (!same(scalar, v128)) FAIL("128-bit " << describe(v128));
       if (!same(scalar, avx2)) FAIL("avx2 " << describe(avx2));
+      if (!same(scalar, avx512)) FAIL("avx512 " << describe(avx512));
       if (!same(scalar, best)) FAIL("vector " << describe(best));
       ++cases;
     }

@@ -122,10 +122,6 @@ bool fixedWarp(double cx, double cy, const double (&A)[4], int half, int width, 
   return true;
 }
 
-}  // namespace
-
-namespace {
-
 /// Window sums of a template level (exact integers): gradient products and sums, intensities.
 struct TemplateSums {
   int64_t gxx = 0, gxy = 0, gyy = 0, gx = 0, gy = 0, t = 0, tt = 0;
@@ -134,14 +130,15 @@ struct TemplateSums {
 /// One template row: `src` the image pixel above-left of the row's first pixel (rows of
 /// `stride`, side + 2 columns and 3 rows are read), out the values (<< kLkValueBits), the Scharr
 /// gradients (Scharr 2000, unnormalised: 32 x the intensity gradient) and zeros up to `tstride`.
+/// `vector`: SSE2 / NEON where available (the same values).
 void templateRow(const uint8_t* src, std::ptrdiff_t stride, int side, int tstride, int16_t* T,
-                 int16_t* Sx, int16_t* Sy, TemplateSums& sums) {
+                 int16_t* Sx, int16_t* Sy, TemplateSums& sums, bool vector) {
   const uint8_t* r0 = src;
   const uint8_t* r1 = src + stride;
   const uint8_t* r2 = src + 2 * stride;
   int u = 0;
 #if EPITRACK_LK_SIMD
-  {
+  if (vector) {
     using namespace simd;
     // Pairs of columns per int32 lane: products <= 2 * 4080^2 < 2^25, 3 groups of 8 at most
     // before the row's sums go to int64 (each sum below 2^27).
@@ -185,6 +182,8 @@ void templateRow(const uint8_t* src, std::ptrdiff_t stride, int side, int tstrid
     sums.t += sum32(t);
     sums.tt += sum32(tt);
   }
+#else
+  static_cast<void>(vector);
 #endif
   for (; u < side; ++u) {
     const int xx = u + 1;
@@ -352,7 +351,7 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
       const int yy = cy - half_ + v;
       const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(tstride_);
       templateRow(img.row(yy - 1) + (cx - half_ - 1), img.stride, side_, tstride_, T + i, Sx + i,
-                  Sy + i, sums);
+                  Sy + i, sums, options_.vector_kernels);
     }
     const double sxx = static_cast<double>(sums.gxx), sxy = static_cast<double>(sums.gxy);
     const double syy = static_cast<double>(sums.gyy), sx = static_cast<double>(sums.gx);

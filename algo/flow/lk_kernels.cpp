@@ -131,8 +131,8 @@ void lkAffineSumsScalar(ImageView<const uint8_t> image, const LkAffineWarp& warp
   const int half = side / 2;
   int64_t gx = 0, gy = 0, ugx = 0, vgx = 0, ugy = 0, vgy = 0, sum_e = 0, sum_sq = 0;
   for (int v = 0; v < side; ++v) {
-    int32_t X = warp.x + v * warp.xv;
-    int32_t Y = warp.y + v * warp.yv;
+    int32_t X = warp.row_x[v];
+    int32_t Y = warp.row_y[v];
     const int16_t* t = T + v * tstride;
     const int16_t* sx = Sx + v * tstride;
     const int16_t* sy = Sy + v * tstride;
@@ -190,27 +190,51 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
   const I32x4 lane_y_hi = set32x4(4 * yu, 5 * yu, 6 * yu, 7 * yu);
   const I32x4 one = set32(kOne);
   const I32x4 fraction = set32(kOne - 1);
-  const I32x4 round7 = set32(1 << 6);
-  const I32x4 round16 = set32(1 << 15);
+  const I32x4 round_w = set32(kOne >> 1);
+  const I32x4 round_s = set32(1 << (kLkWeightBits - kLkValueBits - 1));
+  const I16x8 one16 = set16(static_cast<int16_t>(kOne));
   const I16x8 odd = pair16(0, -1);  // the second pixel of each pair
   const I16x8 ones = set16(1);
-  // Weights (2^14 - f, f) per pixel pair lane, from the positions P (16.16).
-  const auto weights = [&](I32x4 P) {
-    const I32x4 f = bitAnd(srl32<kCut>(P), fraction);
-    return as16(bitOr(sll32<16>(f), sub32(one, f)));
+  // lkBilinear's weights of 8 pixels from their positions (16.16), as (w00, w01) and (w10, w11)
+  // int16 pairs per int32 lane, pixels 0-3 (lo) and 4-7 (hi): exact 32-bit products of the
+  // 14-bit fractions, rounded, the fourth weight the remainder.
+  struct Weights {
+    I16x8 w0_lo, w1_lo, w0_hi, w1_hi;
   };
-  // (p0, p1) pairs (int16 each) to samples: the horizontal interpolation of both rows, rounded
-  // to 7 fractional bits, then the vertical one (lkAffineSample).
-  const auto sample = [&](I16x8 top, I16x8 bottom, I16x8 wx, I16x8 wy) {
-    const I32x4 h0 = sra32<7>(add32(madd(top, wx), round7));
-    const I32x4 h1 = sra32<7>(add32(madd(bottom, wx), round7));
-    return sra32<16>(add32(madd(as16(bitOr(h0, sll32<16>(h1))), wy), round16));
+  const auto weights = [&](I32x4 X_lo, I32x4 X_hi, I32x4 Y_lo, I32x4 Y_hi) {
+    const I16x8 fx =
+        pack32(bitAnd(srl32<kCut>(X_lo), fraction), bitAnd(srl32<kCut>(X_hi), fraction));
+    const I16x8 fy =
+        pack32(bitAnd(srl32<kCut>(Y_lo), fraction), bitAnd(srl32<kCut>(Y_hi), fraction));
+    const I16x8 gx = sub16(one16, fx);
+    const I16x8 gy = sub16(one16, fy);
+    I32x4 p00_lo, p00_hi, p01_lo, p01_hi, p10_lo, p10_hi;
+    mulWidenU16(gx, gy, p00_lo, p00_hi);
+    mulWidenU16(fx, gy, p01_lo, p01_hi);
+    mulWidenU16(gx, fy, p10_lo, p10_hi);
+    const auto pairs = [&](I32x4 p00, I32x4 p01, I32x4 p10, I16x8& w0, I16x8& w1) {
+      const I32x4 w00 = sra32<kLkWeightBits>(add32(p00, round_w));
+      const I32x4 w01 = sra32<kLkWeightBits>(add32(p01, round_w));
+      const I32x4 w10 = sra32<kLkWeightBits>(add32(p10, round_w));
+      const I32x4 w11 = sub32(sub32(sub32(one, w00), w01), w10);
+      w0 = as16(bitOr(w00, sll32<16>(w01)));
+      w1 = as16(bitOr(w10, sll32<16>(w11)));
+    };
+    Weights w;
+    pairs(p00_lo, p01_lo, p10_lo, w.w0_lo, w.w1_lo);
+    pairs(p00_hi, p01_hi, p10_hi, w.w0_hi, w.w1_hi);
+    return w;
+  };
+  // (p0, p1) pairs of the top and bottom rows (int16 each) to samples (lkAffineSample).
+  const auto sample = [&](I16x8 top, I16x8 bottom, I16x8 w0, I16x8 w1) {
+    return sra32<kLkWeightBits - kLkValueBits>(
+        add32(add32(madd(top, w0), madd(bottom, w1)), round_s));
   };
   I32x4 acc_e = zero32();
   int64_t gx = 0, gy = 0, ugx = 0, vgx = 0, ugy = 0, vgy = 0, sum_sq = 0;
   for (int v = 0; v < side; ++v) {
-    int32_t Xg = warp.x + v * warp.xv;
-    int32_t Yg = warp.y + v * warp.yv;
+    int32_t Xg = warp.row_x[v];
+    int32_t Yg = warp.row_y[v];
     const int16_t* t = T + v * tstride;
     const int16_t* sx = Sx + v * tstride;
     const int16_t* sy = Sy + v * tstride;
@@ -272,10 +296,10 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
       }
       const I32x4 X0 = set32(Xg);
       const I32x4 Y0 = set32(Yg);
-      const I32x4 s_lo =
-          sample(top_lo, bottom_lo, weights(add32(X0, lane_x_lo)), weights(add32(Y0, lane_y_lo)));
-      const I32x4 s_hi =
-          sample(top_hi, bottom_hi, weights(add32(X0, lane_x_hi)), weights(add32(Y0, lane_y_hi)));
+      const Weights w = weights(add32(X0, lane_x_lo), add32(X0, lane_x_hi), add32(Y0, lane_y_lo),
+                                add32(Y0, lane_y_hi));
+      const I32x4 s_lo = sample(top_lo, bottom_lo, w.w0_lo, w.w1_lo);
+      const I32x4 s_hi = sample(top_hi, bottom_hi, w.w0_hi, w.w1_hi);
       // Beyond the window the pixels are 0, so are the samples and (padding) the template.
       const I16x8 e = sub16(pack32(s_lo, s_hi), loadI16(t + u));
       const I16x8 e_odd = as16(bitAnd(as32(e), as32(odd)));

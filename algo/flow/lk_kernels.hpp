@@ -69,33 +69,29 @@ const char* lkVectorIsa();
 /// Warped positions of the affine iteration: 16.16 fixed point (kLkPosBits fractional bits).
 constexpr int kLkPosBits = 16;
 
-/// Where the template pixel (u, v) lies in the image: (x + u xu + v xv, y + u yu + v yv), each
-/// term 16.16 fixed point, so every position is an exact integer (no per-row rounding).
+/// Where the template pixel (u, v) lies in the image: (row_x[v] + u xu, row_y[v] + u yu), 16.16
+/// fixed point: each row's start rounded from the affine warp once, then whole steps per column.
 struct LkAffineWarp {
-  int32_t x = 0;  ///< template pixel (0, 0)
-  int32_t y = 0;
+  const int32_t* row_x = nullptr;  ///< per template row: position of its first pixel
+  const int32_t* row_y = nullptr;
   int32_t xu = 1 << kLkPosBits;  ///< step per template column
   int32_t yu = 0;
-  int32_t xv = 0;  ///< step per template row
-  int32_t yv = 1 << kLkPosBits;
 };
 
 /// The affine sample at the 16.16 position (X, Y), in 1/2^kLkValueBits gray levels: the fraction
-/// cut to fx, fy of kLkWeightBits = 14 bits; horizontal interpolation of both rows,
-/// h = p0 (2^14 - fx) + p1 fx, rounded to 7 fractional bits (h7 = (h + 64) >> 7, at most 32640,
-/// an int16); then vertical, (h7_top (2^14 - fy) + h7_bottom fy + 2^15) >> 16 (< 2^31). Reads the
-/// pixel at (X >> 16, Y >> 16) and its right, lower and lower-right neighbours.
+/// cut to kLkWeightBits, the four bilinear weights rounded and the last one the remainder, so they
+/// sum to 1 << kLkWeightBits exactly (as lkBilinear). Reads the pixel at (X >> 16, Y >> 16) and its
+/// right, lower and lower-right neighbours.
 inline int32_t lkAffineSample(const uint8_t* image, std::ptrdiff_t stride, int32_t X, int32_t Y) {
-  constexpr int32_t kOne = 1 << kLkWeightBits;
+  constexpr int kShift = kLkWeightBits - kLkValueBits;
   constexpr int kCut = kLkPosBits - kLkWeightBits;
-  const int32_t fx = (X >> kCut) & (kOne - 1);
-  const int32_t fy = (Y >> kCut) & (kOne - 1);
+  constexpr int32_t kFraction = (1 << kLkWeightBits) - 1;
+  const LkBilinear w = lkBilinear((X >> kCut) & kFraction, (Y >> kCut) & kFraction);
   const uint8_t* r0 =
       image + static_cast<std::ptrdiff_t>(Y >> kLkPosBits) * stride + (X >> kLkPosBits);
   const uint8_t* r1 = r0 + stride;
-  const int32_t top = (r0[0] * (kOne - fx) + r0[1] * fx + 64) >> 7;
-  const int32_t bottom = (r1[0] * (kOne - fx) + r1[1] * fx + 64) >> 7;
-  return (top * (kOne - fy) + bottom * fy + (1 << 15)) >> 16;
+  return (w.w00 * r0[0] + w.w01 * r0[1] + w.w10 * r1[0] + w.w11 * r1[1] + (1 << (kShift - 1))) >>
+         kShift;
 }
 
 /// Window sums of one affine iteration, e = sample - template (1/32 gray levels), u and v the
@@ -113,9 +109,10 @@ struct LkAffineSums {
 
 /// One pass of the affine iteration over a side x side template warped by `warp` into `image`.
 /// Valid domain: every position of the window has 0 <= X >> 16 <= width - 2 and
-/// 0 <= Y >> 16 <= height - 2 (it suffices that the four corners do: positions are affine in
-/// (u, v)); `T`, `Sx`, `Sy` as for lkTranslationSumsScalar. The sums are exact integers (every
-/// product fits int32, the sums are int64), so every variant gives the same sums bit for bit.
+/// 0 <= Y >> 16 <= height - 2 (it suffices that each row's first and last pixel do: positions
+/// are linear along a row); `T`, `Sx`, `Sy` as for lkTranslationSumsScalar. The sums are exact
+/// integers (every product fits int32, the sums are int64), so every variant gives the same sums
+/// bit for bit.
 void lkAffineSumsScalar(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                         const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                         LkAffineSums& out);

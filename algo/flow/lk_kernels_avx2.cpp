@@ -42,7 +42,7 @@ EPITRACK_AVX2_INLINE Lanes64 lanes(const __m256i (&acc)[2]) {
 
 /// What every group of a window shares.
 struct Setup {
-  __m256i one, fraction, round7, round16, pair, pair_base, stride, step_x, step_y;
+  __m256i one, fraction, round_w, round_s, pair, pair_base, stride, step_x, step_y;
   const uint8_t* data;
   std::ptrdiff_t row_stride;
   const int* top_row;  // the gathers take an int pointer; they read 4 bytes at byte offsets
@@ -108,18 +108,25 @@ EPITRACK_AVX2_INLINE void group(const Setup& c, RowSums& r, const int16_t* t, co
     top = _mm256_shuffle_epi8(top, c.pair);
     bottom = _mm256_shuffle_epi8(bottom, c.pair);
   }
-  // Bilinear weights (2^14 - f, f) as int16 pairs, then lkAffineSample's interpolation.
+  // lkBilinear's weights from the 14-bit fractions (exact int32 products), the fourth the
+  // remainder, as (w00, w01) and (w10, w11) int16 pairs; then lkAffineSample's sum.
   const __m256i fx = _mm256_and_si256(_mm256_srli_epi32(r.X, kCut), c.fraction);
   const __m256i fy = _mm256_and_si256(_mm256_srli_epi32(r.Y, kCut), c.fraction);
-  const __m256i wx = _mm256_or_si256(_mm256_slli_epi32(fx, 16), _mm256_sub_epi32(c.one, fx));
-  const __m256i wy = _mm256_or_si256(_mm256_slli_epi32(fy, 16), _mm256_sub_epi32(c.one, fy));
-  const __m256i h0 = _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(top, wx), c.round7), 7);
-  const __m256i h1 =
-      _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(bottom, wx), c.round7), 7);
+  const __m256i gx = _mm256_sub_epi32(c.one, fx);
+  const __m256i gy = _mm256_sub_epi32(c.one, fy);
+  const __m256i w00 =
+      _mm256_srai_epi32(_mm256_add_epi32(_mm256_mullo_epi32(gx, gy), c.round_w), kLkWeightBits);
+  const __m256i w01 =
+      _mm256_srai_epi32(_mm256_add_epi32(_mm256_mullo_epi32(fx, gy), c.round_w), kLkWeightBits);
+  const __m256i w10 =
+      _mm256_srai_epi32(_mm256_add_epi32(_mm256_mullo_epi32(gx, fy), c.round_w), kLkWeightBits);
+  const __m256i w11 = _mm256_sub_epi32(_mm256_sub_epi32(_mm256_sub_epi32(c.one, w00), w01), w10);
+  const __m256i w0 = _mm256_or_si256(w00, _mm256_slli_epi32(w01, 16));
+  const __m256i w1 = _mm256_or_si256(w10, _mm256_slli_epi32(w11, 16));
   const __m256i s = _mm256_srai_epi32(
-      _mm256_add_epi32(_mm256_madd_epi16(_mm256_or_si256(h0, _mm256_slli_epi32(h1, 16)), wy),
-                       c.round16),
-      16);
+      _mm256_add_epi32(_mm256_add_epi32(_mm256_madd_epi16(top, w0), _mm256_madd_epi16(bottom, w1)),
+                       c.round_s),
+      kLkWeightBits - kLkValueBits);
   __m128i t16, sx16, sy16;
   std::memcpy(&t16, t, sizeof(t16));
   std::memcpy(&sx16, sx, sizeof(sx16));
@@ -154,8 +161,8 @@ EPITRACK_AVX2_INLINE void affineBody(ImageView<const uint8_t> image, const LkAff
   Setup c;
   c.one = _mm256_set1_epi32(kOne);
   c.fraction = _mm256_set1_epi32(kOne - 1);
-  c.round7 = _mm256_set1_epi32(1 << 6);
-  c.round16 = _mm256_set1_epi32(1 << 15);
+  c.round_w = _mm256_set1_epi32(kOne >> 1);
+  c.round_s = _mm256_set1_epi32(1 << (kLkWeightBits - kLkValueBits - 1));
   c.pair = _mm256_setr_epi8(0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1, 0, -1, 1, -1,
                             4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1);
   // Shuffle control base: bytes 1 and 3 of each int32 zero (high bit), byte 2 one further.
@@ -180,8 +187,8 @@ EPITRACK_AVX2_INLINE void affineBody(ImageView<const uint8_t> image, const LkAff
     // int32 per lane and row: products and their running sums after each group, at most
     // n (n + 1) / 2 * 2^25 < 2^31 for n <= 10 groups; squares n * 2^26.
     RowSums r;
-    r.xg = warp.x + v * warp.xv;
-    r.yg = warp.y + v * warp.yv;
+    r.xg = warp.row_x[v];
+    r.yg = warp.row_y[v];
     r.X = _mm256_add_epi32(_mm256_set1_epi32(r.xg), lane_x);
     r.Y = _mm256_add_epi32(_mm256_set1_epi32(r.yg), lane_y);
     r.a_gx = r.q_gx = r.a_gy = r.q_gy = r.a_sq = zero;
@@ -271,10 +278,13 @@ bool affinePlan(ImageView<const uint8_t> image, const LkAffineWarp& warp, int si
   // its right neighbour: not past the end of the image's last row.
   constexpr int kMaxSide = 80;
   if (side > kMaxSide) return false;
-  const int32_t du = (side - 1) * warp.xu, dv = (side - 1) * warp.xv;
-  const int32_t eu = (side - 1) * warp.yu, ev = (side - 1) * warp.yv;
-  const int32_t x_max = std::max({warp.x, warp.x + du, warp.x + dv, warp.x + du + dv});
-  const int32_t y_max = std::max({warp.y, warp.y + eu, warp.y + ev, warp.y + eu + ev});
+  // The largest positions: each row's first or last pixel (positions are linear along a row).
+  const int32_t du = (side - 1) * warp.xu, eu = (side - 1) * warp.yu;
+  int32_t x_max = warp.row_x[0], y_max = warp.row_y[0];
+  for (int v = 0; v < side; ++v) {
+    x_max = std::max({x_max, warp.row_x[v], warp.row_x[v] + du});
+    y_max = std::max({y_max, warp.row_y[v], warp.row_y[v] + eu});
+  }
   shuffle = shuffleFits(image, warp, x_max, y_max);
   const bool last_row = (y_max >> kLkPosBits) + 2 >= image.height;
   return shuffle || !last_row || (x_max >> kLkPosBits) + 3 < image.width;

@@ -28,18 +28,19 @@ namespace {
 
 /// What every group of a window shares.
 struct Setup {
-  __m512i one, fraction, round7, round16, pair, pair_base, stride, step_x, step_y;
+  __m512i one, fraction, round_w, round_s, pair, pair_base, stride, step_x, step_y;
   const uint8_t* data;
   std::ptrdiff_t row_stride;
   const int* top_row;  // the gathers take an int pointer; they read 4 bytes at byte offsets
   const int* bottom_row;
-  int32_t xu, yu, xv, yv;
+  int32_t xu, yu;
 };
 
 /// One pair of rows: positions and int32 running sums per lane (see lk_kernels_avx2.cpp).
 struct PairSums {
-  __m512i X, Y;    // positions of the group's 16 pixels (16.16)
-  int32_t xg, yg;  // the group's first pixel in the first row
+  __m512i X, Y;      // positions of the group's 16 pixels (16.16)
+  int32_t xg, yg;    // the group's first pixel in the first row
+  int32_t xg1, yg1;  // ... in the second
   __m512i a_gx, q_gx, a_gy, q_gy, a_sq, acc_e;
 };
 
@@ -78,7 +79,7 @@ EPITRACK_AVX512_INLINE void group(const Setup& c, PairSums& r, const int16_t* t0
     int ix0, iy0;
     groupCorner(c, r.xg, r.yg, n, ix0, iy0);
     int ix1 = ix0, iy1 = iy0;  // the second row (the first again when absent: readable)
-    if constexpr (!kSingle) groupCorner(c, r.xg + c.xv, r.yg + c.yv, n, ix1, iy1);
+    if constexpr (!kSingle) groupCorner(c, r.xg1, r.yg1, n, ix1, iy1);
     const uint8_t* p0 = c.data + static_cast<std::ptrdiff_t>(iy0) * c.row_stride + ix0;
     const uint8_t* p1 = c.data + static_cast<std::ptrdiff_t>(iy1) * c.row_stride + ix1;
     const __m512i l0 = rows2(p0, p1);
@@ -105,17 +106,25 @@ EPITRACK_AVX512_INLINE void group(const Setup& c, PairSums& r, const int16_t* t0
     bottom = _mm512_shuffle_epi8(_mm512_mask_i32gather_epi32(zero, mask, offset, c.bottom_row, 1),
                                  c.pair);
   }
+  // lkBilinear's weights from the 14-bit fractions (exact int32 products), the fourth the
+  // remainder, as (w00, w01) and (w10, w11) int16 pairs; then lkAffineSample's sum.
   const __m512i fx = _mm512_and_si512(_mm512_srli_epi32(r.X, kCut), c.fraction);
   const __m512i fy = _mm512_and_si512(_mm512_srli_epi32(r.Y, kCut), c.fraction);
-  const __m512i wx = _mm512_or_si512(_mm512_slli_epi32(fx, 16), _mm512_sub_epi32(c.one, fx));
-  const __m512i wy = _mm512_or_si512(_mm512_slli_epi32(fy, 16), _mm512_sub_epi32(c.one, fy));
-  const __m512i h0 = _mm512_srai_epi32(_mm512_add_epi32(_mm512_madd_epi16(top, wx), c.round7), 7);
-  const __m512i h1 =
-      _mm512_srai_epi32(_mm512_add_epi32(_mm512_madd_epi16(bottom, wx), c.round7), 7);
+  const __m512i gx = _mm512_sub_epi32(c.one, fx);
+  const __m512i gy = _mm512_sub_epi32(c.one, fy);
+  const __m512i w00 =
+      _mm512_srai_epi32(_mm512_add_epi32(_mm512_mullo_epi32(gx, gy), c.round_w), kLkWeightBits);
+  const __m512i w01 =
+      _mm512_srai_epi32(_mm512_add_epi32(_mm512_mullo_epi32(fx, gy), c.round_w), kLkWeightBits);
+  const __m512i w10 =
+      _mm512_srai_epi32(_mm512_add_epi32(_mm512_mullo_epi32(gx, fy), c.round_w), kLkWeightBits);
+  const __m512i w11 = _mm512_sub_epi32(_mm512_sub_epi32(_mm512_sub_epi32(c.one, w00), w01), w10);
+  const __m512i w0 = _mm512_or_si512(w00, _mm512_slli_epi32(w01, 16));
+  const __m512i w1 = _mm512_or_si512(w10, _mm512_slli_epi32(w11, 16));
   const __m512i s = _mm512_srai_epi32(
-      _mm512_add_epi32(_mm512_madd_epi16(_mm512_or_si512(h0, _mm512_slli_epi32(h1, 16)), wy),
-                       c.round16),
-      16);
+      _mm512_add_epi32(_mm512_add_epi32(_mm512_madd_epi16(top, w0), _mm512_madd_epi16(bottom, w1)),
+                       c.round_s),
+      kLkWeightBits - kLkValueBits);
   // Lanes outside the window (the padding, an absent row) give e = 0.
   const __m512i e = _mm512_maskz_sub_epi32(mask, s, load16x2(t0, t1));
   r.a_gx = _mm512_add_epi32(r.a_gx, _mm512_mullo_epi32(e, load16x2(sx0, sx1)));
@@ -128,6 +137,8 @@ EPITRACK_AVX512_INLINE void group(const Setup& c, PairSums& r, const int16_t* t0
   r.Y = _mm512_add_epi32(r.Y, c.step_y);
   r.xg += 8 * c.xu;
   r.yg += 8 * c.yu;
+  r.xg1 += 8 * c.xu;
+  r.yg1 += 8 * c.yu;
 }
 
 /// int64 accumulators per column lane k (0-7) over the window.
@@ -165,19 +176,15 @@ EPITRACK_AVX512_INLINE void affineBody(ImageView<const uint8_t> image, const LkA
   // Lane k < 8: column k of the first row; k >= 8: column k - 8 of the second.
   const __m512i column = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7);
   const __mmask16 second = 0xFF00;
-  const __m512i lane_x = _mm512_mask_add_epi32(
-      _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.xu)), second,
-      _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.xu)), _mm512_set1_epi32(warp.xv));
-  const __m512i lane_y = _mm512_mask_add_epi32(
-      _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.yu)), second,
-      _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.yu)), _mm512_set1_epi32(warp.yv));
+  const __m512i lane_x = _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.xu));
+  const __m512i lane_y = _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.yu));
   const __mmask16 tail_mask =
       static_cast<__mmask16>(_mm512_cmpgt_epi32_mask(_mm512_set1_epi32(tail), column));
   Setup c;
   c.one = _mm512_set1_epi32(kOne);
   c.fraction = _mm512_set1_epi32(kOne - 1);
-  c.round7 = _mm512_set1_epi32(1 << 6);
-  c.round16 = _mm512_set1_epi32(1 << 15);
+  c.round_w = _mm512_set1_epi32(kOne >> 1);
+  c.round_s = _mm512_set1_epi32(1 << (kLkWeightBits - kLkValueBits - 1));
   // Bytes 0 and 1 of each gathered int32 as two int16 (per 128-bit lane).
   c.pair = _mm512_set4_epi32(static_cast<int32_t>(0x800D800Cu), static_cast<int32_t>(0x80098008u),
                              static_cast<int32_t>(0x80058004u), static_cast<int32_t>(0x80018000u));
@@ -191,8 +198,6 @@ EPITRACK_AVX512_INLINE void affineBody(ImageView<const uint8_t> image, const LkA
   c.bottom_row = static_cast<const int*>(static_cast<const void*>(image.data + image.stride));
   c.xu = warp.xu;
   c.yu = warp.yu;
-  c.xv = warp.xv;
-  c.yv = warp.yv;
   const __m512i zero = _mm512_setzero_si512();
   Acc64 gx{zero, zero, zero, zero}, gy{zero, zero, zero, zero};
   __m512i sq = zero;
@@ -201,10 +206,12 @@ EPITRACK_AVX512_INLINE void affineBody(ImageView<const uint8_t> image, const LkA
     const int v = 2 * p;
     const bool single = v + 1 == side;  // the last row of an odd window
     PairSums r;
-    r.xg = warp.x + v * warp.xv;
-    r.yg = warp.y + v * warp.yv;
-    r.X = _mm512_add_epi32(_mm512_set1_epi32(r.xg), lane_x);
-    r.Y = _mm512_add_epi32(_mm512_set1_epi32(r.yg), lane_y);
+    r.xg = warp.row_x[v];
+    r.yg = warp.row_y[v];
+    r.xg1 = single ? r.xg : warp.row_x[v + 1];  // (an absent row: masked off)
+    r.yg1 = single ? r.yg : warp.row_y[v + 1];
+    r.X = _mm512_add_epi32(_mm512_mask_set1_epi32(_mm512_set1_epi32(r.xg), second, r.xg1), lane_x);
+    r.Y = _mm512_add_epi32(_mm512_mask_set1_epi32(_mm512_set1_epi32(r.yg), second, r.yg1), lane_y);
     r.a_gx = r.q_gx = r.a_gy = r.q_gy = r.a_sq = zero;
     r.acc_e = acc_e;
     const std::ptrdiff_t row0 = static_cast<std::ptrdiff_t>(v) * tstride;

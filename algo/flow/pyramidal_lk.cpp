@@ -50,6 +50,8 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   levels_.assign(static_cast<std::size_t>(capacity_) * static_cast<std::size_t>(level_count_),
                  LevelTemplate{});
   affine_.assign(static_cast<std::size_t>(capacity_), AffineTemplate{});
+  row_x_.reserve(static_cast<std::size_t>(side_));
+  row_y_.reserve(static_cast<std::size_t>(side_));
 }
 
 namespace {
@@ -79,46 +81,56 @@ bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
   return true;
 }
 
-/// A length in pixels as 16.16 fixed point (rounded half away from zero). |value| < 2^15.
-inline int32_t toFixed16(double value) {
-  constexpr double kOne = static_cast<double>(1 << kLkPosBits);
-  return static_cast<int32_t>(std::lround(value * kOne));
+/// std::lround for |value| < 2^31 (half away from zero) without the library call or a branch: the
+/// difference of a double and its truncation is exact.
+inline int32_t roundHalfAway(double value) {
+  const auto i = static_cast<int32_t>(value);
+  const double f = value - static_cast<double>(i);
+  return i + static_cast<int32_t>(f >= 0.5) - static_cast<int32_t>(f <= -0.5);
 }
 
-/// The 16.16 warp of a side x side template with centre (cx, cy) and shape A (template to image):
-/// the centre rounded once, the steps per column and row rounded once (positions are exact
-/// integers from there on, lkAffineSums*). False when a corner of the window (with its bilinear
-/// neighbours) leaves the image.
-bool fixedWarp(double cx, double cy, const double (&A)[4], int half, int width, int height,
-               LkAffineWarp& warp) {
+/// The 16.16 positions of a side x side window (half = side / 2) with centre (cx, cy) and shape A
+/// (template to image) for the affine kernels: each row's first pixel rounded from the warp, the
+/// step per column rounded once (Bouguet-style fixed point, as the scalar loop before the vector
+/// kernels). False when the window leaves the image: its corners with their bilinear neighbours in
+/// floating point, then, exactly, every row's first and last pixel.
+bool rowWarp(double cx, double cy, const double (&A)[4], int half, int side, int width, int height,
+             int32_t* row_x, int32_t* row_y, LkAffineWarp& warp) {
+  constexpr double kPosOne = static_cast<double>(1 << kLkPosBits);
   const double h = half;
-  // Reject in floating point first (also NaN), so the conversions below cannot overflow.
+  double min_x = 1e30, max_x = -1e30, min_y = 1e30, max_y = -1e30;
   for (const double su : {-h, h}) {
     for (const double sv : {-h, h}) {
       const double wx = cx + A[0] * su + A[1] * sv;
       const double wy = cy + A[2] * su + A[3] * sv;
-      if (!(wx >= -1.0 && wy >= -1.0 && wx < width && wy < height)) return false;
+      min_x = std::min(min_x, wx);
+      max_x = std::max(max_x, wx);
+      min_y = std::min(min_y, wy);
+      max_y = std::max(max_y, wy);
     }
   }
-  const int32_t xc = toFixed16(cx);
-  const int32_t yc = toFixed16(cy);
-  warp.xu = toFixed16(A[0]);
-  warp.xv = toFixed16(A[1]);
-  warp.yu = toFixed16(A[2]);
-  warp.yv = toFixed16(A[3]);
-  warp.x = xc - half * (warp.xu + warp.xv);
-  warp.y = yc - half * (warp.yu + warp.yv);
-  // The exact test on the positions the kernels use: 0 <= X >> 16 <= width - 2 at the corners.
-  const int32_t x_limit = (width - 1) << kLkPosBits;
+  if (!(min_x >= 0.0 && min_y >= 0.0 && max_x < width - 1 && max_y < height - 1)) return false;
+  warp.xu = roundHalfAway(A[0] * kPosOne);
+  warp.yu = roundHalfAway(A[2] * kPosOne);
+  const int32_t x_limit = (width - 1) << kLkPosBits;  // X >> 16 <= width - 2
   const int32_t y_limit = (height - 1) << kLkPosBits;
-  const int span = 2 * half;
-  for (const int u : {0, span}) {
-    for (const int v : {0, span}) {
-      const int32_t X = warp.x + u * warp.xu + v * warp.xv;
-      const int32_t Y = warp.y + u * warp.yu + v * warp.yv;
-      if (X < 0 || Y < 0 || X >= x_limit || Y >= y_limit) return false;
-    }
+  for (int v = 0; v < side; ++v) {
+    const double dv = v - h;
+    row_x[v] = roundHalfAway((cx - A[0] * h + A[1] * dv) * kPosOne);
+    row_y[v] = roundHalfAway((cy - A[2] * h + A[3] * dv) * kPosOne);
   }
+  const int32_t du = (side - 1) * warp.xu;
+  const int32_t eu = (side - 1) * warp.yu;
+  int32_t x_lo = row_x[0], x_hi = row_x[0], y_lo = row_y[0], y_hi = row_y[0];
+  for (int v = 0; v < side; ++v) {
+    x_lo = std::min({x_lo, row_x[v], row_x[v] + du});
+    x_hi = std::max({x_hi, row_x[v], row_x[v] + du});
+    y_lo = std::min({y_lo, row_y[v], row_y[v] + eu});
+    y_hi = std::max({y_hi, row_y[v], row_y[v] + eu});
+  }
+  if (x_lo < 0 || y_lo < 0 || x_hi >= x_limit || y_hi >= y_limit) return false;
+  warp.row_x = row_x;
+  warp.row_y = row_y;
   return true;
 }
 
@@ -489,9 +501,10 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
   const double h = half_;
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
-    // The warped window's corners must stay inside the image (with the bilinear neighbour).
+    // The warped window must stay inside the image (with the bilinear neighbours).
     LkAffineWarp warp;
-    if (!fixedWarp(cx, cy, A, half_, image.width, image.height, warp)) {
+    if (!rowWarp(cx, cy, A, half_, side_, image.width, image.height, row_x_.data(), row_y_.data(),
+                 warp)) {
       return LkStatus::kLeftImage;
     }
     ++iterations_;
@@ -556,7 +569,10 @@ double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, dou
                                    const double (&A)[4]) const {
   const int r = residual_radius_;
   LkAffineWarp warp;
-  if (!fixedWarp(cx, cy, A, r, image.width, image.height, warp)) return -1.0;
+  if (!rowWarp(cx, cy, A, r, 2 * r + 1, image.width, image.height, row_x_.data(), row_y_.data(),
+               warp)) {
+    return -1.0;
+  }
   // The central (2r+1)^2 pixels of the base template, sampled as alignAffine does (the scalar
   // kernel: it reads only the window's columns, not the padding beyond them).
   const std::size_t offset =

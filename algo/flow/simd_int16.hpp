@@ -121,6 +121,14 @@ inline I32x4 loadI32(const int32_t* p) {
   std::memcpy(&v, p, sizeof(v));
   return v;
 }
+/// The exact int32 products of lanes 0-3 (lo) and 4-7 (hi) taken as uint16 (each product below
+/// 2^31 when both factors are at most 2^15).
+inline void mulWidenU16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
+  const __m128i l = _mm_mullo_epi16(a, b);
+  const __m128i h = _mm_mulhi_epu16(a, b);
+  lo = _mm_unpacklo_epi16(l, h);
+  hi = _mm_unpackhi_epi16(l, h);
+}
 
 // 4 x float, IEEE single precision with round-to-nearest (the same results as scalar float
 // arithmetic without contraction, -ffp-contract=off).
@@ -273,6 +281,12 @@ inline void mulWiden16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
   hi = vmull_high_s16(a, b);
 }
 inline I32x4 loadI32(const int32_t* p) { return vld1q_s32(p); }
+inline void mulWidenU16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
+  const uint16x8_t ua = vreinterpretq_u16_s16(a);
+  const uint16x8_t ub = vreinterpretq_u16_s16(b);
+  lo = vreinterpretq_s32_u32(vmull_u16(vget_low_u16(ua), vget_low_u16(ub)));
+  hi = vreinterpretq_s32_u32(vmull_high_u16(ua, ub));
+}
 
 using F32x4 = float32x4_t;
 inline F32x4 toF32(I32x4 a) { return vcvtq_f32_s32(a); }

@@ -42,6 +42,7 @@ int16_t uniformI16(SplitMix64& rng, int lo, int hi) {
 /// sometimes none, so that windows touch the last row and column), a template.
 struct AffineCase {
   LkAffineWarp warp;
+  std::vector<int32_t> row_x, row_y;
   int width = 0;
   int height = 0;
   int stride = 0;
@@ -75,19 +76,26 @@ AffineCase makeCase(SplitMix64& rng, int side, int mode) {
       a11 = -a11;
     }
   }  // kind 1: exactly the identity (whole-pixel steps)
+  // Rows start where the warp puts them, each rounded to 16.16 on its own (as PyramidalLk does),
+  // sometimes one unit off; the steps along a row are rounded once.
   const auto fixed = [](double v) { return static_cast<int32_t>(std::lround(v * 65536.0)); };
   c.warp.xu = fixed(a00);
-  c.warp.xv = fixed(a01);
   c.warp.yu = fixed(a10);
-  c.warp.yv = fixed(a11);
-  c.warp.x = static_cast<int32_t>(rng.below(1 << 16));
-  c.warp.y = static_cast<int32_t>(rng.below(1 << 16));
-  // Bounding box of the positions (the corners), then shift it into the image.
+  const double x0 = rng.uniform(), y0 = rng.uniform();
+  c.row_x.resize(static_cast<std::size_t>(side));
+  c.row_y.resize(static_cast<std::size_t>(side));
+  for (int v = 0; v < side; ++v) {
+    const auto k = static_cast<std::size_t>(v);
+    c.row_x[k] = fixed(x0 + a01 * v) + static_cast<int32_t>(rng.below(3)) - 1;
+    c.row_y[k] = fixed(y0 + a11 * v) + static_cast<int32_t>(rng.below(3)) - 1;
+  }
+  // Bounding box of the positions (each row's first and last pixel), then shift it into the image.
   int ix_min = 1 << 30, ix_max = -(1 << 30), iy_min = 1 << 30, iy_max = -(1 << 30);
-  for (const int u : {0, side - 1}) {
-    for (const int v : {0, side - 1}) {
-      const int32_t X = c.warp.x + u * c.warp.xu + v * c.warp.xv;
-      const int32_t Y = c.warp.y + u * c.warp.yu + v * c.warp.yv;
+  for (int v = 0; v < side; ++v) {
+    for (const int u : {0, side - 1}) {
+      const auto k = static_cast<std::size_t>(v);
+      const int32_t X = c.row_x[k] + u * c.warp.xu;
+      const int32_t Y = c.row_y[k] + u * c.warp.yu;
       ix_min = std::min(ix_min, X >> 16);
       ix_max = std::max(ix_max, X >> 16);
       iy_min = std::min(iy_min, Y >> 16);
@@ -103,8 +111,10 @@ AffineCase makeCase(SplitMix64& rng, int side, int mode) {
   };
   const int right = margin(6, 16 + static_cast<int>(rng.below(4)));
   const int bottom = margin(3, 3 + static_cast<int>(rng.below(3)));
-  c.warp.x += (left - ix_min) * 65536;
-  c.warp.y += (top - iy_min) * 65536;
+  for (auto& x : c.row_x) x += (left - ix_min) * 65536;
+  for (auto& y : c.row_y) y += (top - iy_min) * 65536;
+  c.warp.row_x = c.row_x.data();
+  c.warp.row_y = c.row_y.data();
   c.width = left + (ix_max - ix_min) + 2 + right;
   c.height = top + (iy_max - iy_min) + 2 + bottom;
   c.stride = c.width + (rng.below(2) == 0 ? 0 : static_cast<int>(rng.below(9)));
@@ -151,7 +161,9 @@ TEST_CASE("The affine LK kernels give the scalar kernel's sums bit for bit",
     const int per_side = side <= 41 ? 40 : 6;
     for (int k = 0; k < per_side; ++k) {
       const int mode = k % 5 == 1 ? 1 : k % 5 == 3 ? 2 : 0;
-      const AffineCase c = makeCase(rng, side, mode);
+      AffineCase c = makeCase(rng, side, mode);
+      c.warp.row_x = c.row_x.data();  // (the vectors moved)
+      c.warp.row_y = c.row_y.data();
       const epitrack::ImageView<const uint8_t> image(c.image.data(), c.width, c.height, c.stride);
       LkAffineSums scalar, v128, avx2, avx512, best;
       epitrack::lkAffineSumsScalar(image, c.warp, side, c.T.data(), c.Sx.data(), c.Sy.data(),
@@ -173,6 +185,22 @@ TEST_CASE("The affine LK kernels give the scalar kernel's sums bit for bit",
     }
   }
   CHECK(cases == 41 * 40 + 39 * 6);
+}
+
+TEST_CASE("The affine sample is the translation kernel's bilinear sample", "[tracker][lk][simd]") {
+  // The same fixed point as lkTranslationSumsScalar at its sub-pixel position: a 1x1 window.
+  SplitMix64 rng(8);
+  for (int k = 0; k < 20000; ++k) {
+    uint8_t px[4];
+    for (auto& p : px) p = static_cast<uint8_t>(rng.below(256));
+    const auto X = static_cast<int32_t>(rng.below(1 << 16));
+    const auto Y = static_cast<int32_t>(rng.below(1 << 16));
+    const epitrack::LkBilinear w = epitrack::lkBilinear(X >> 2, Y >> 2);
+    const int16_t zero = 0;
+    epitrack::LkWindowSums sums;
+    epitrack::lkTranslationSumsScalar(px, 2, 1, w, &zero, &zero, &zero, 1, sums);
+    REQUIRE(epitrack::lkAffineSample(px, 2, X, Y) == sums.sum_e);
+  }
 }
 
 TEST_CASE("The affine sample interpolates exactly at whole pixels and within the pixel values",

@@ -52,17 +52,27 @@ int runKernels(int argc, const char* const* argv) {
     }
   }
   // Windows away from the border, shapes within 3 % of the identity (16.16 fixed point).
-  std::vector<LkAffineWarp> warps(1000);
+  constexpr std::size_t kWindows = 1000;
+  std::vector<LkAffineWarp> warps(kWindows);
+  std::vector<int32_t> rows(2 * kWindows * static_cast<std::size_t>(side));
   const auto fixed = [](double v) { return static_cast<int32_t>(std::lround(v * 65536.0)); };
-  for (auto& w : warps) {
-    w.xu = fixed(1.0 + 0.06 * (rng.uniform() - 0.5));
-    w.xv = fixed(0.06 * (rng.uniform() - 0.5));
-    w.yu = fixed(0.06 * (rng.uniform() - 0.5));
-    w.yv = fixed(1.0 + 0.06 * (rng.uniform() - 0.5));
-    w.x =
-        static_cast<int32_t>((2 * side + rng.below(kWidth - 4 * side)) * 65536u + rng.below(65536));
-    w.y = static_cast<int32_t>((2 * side + rng.below(kHeight - 4 * side)) * 65536u +
-                               rng.below(65536));
+  for (std::size_t i = 0; i < kWindows; ++i) {
+    LkAffineWarp& w = warps[i];
+    const double a00 = 1.0 + 0.06 * (rng.uniform() - 0.5), a01 = 0.06 * (rng.uniform() - 0.5);
+    const double a10 = 0.06 * (rng.uniform() - 0.5), a11 = 1.0 + 0.06 * (rng.uniform() - 0.5);
+    const double x = 2 * side + rng.below(static_cast<uint32_t>(kWidth - 4 * side)) + rng.uniform();
+    const double y =
+        2 * side + rng.below(static_cast<uint32_t>(kHeight - 4 * side)) + rng.uniform();
+    int32_t* row_x = rows.data() + 2 * i * static_cast<std::size_t>(side);
+    int32_t* row_y = row_x + side;
+    for (int v = 0; v < side; ++v) {
+      row_x[v] = fixed(x + a01 * v);
+      row_y[v] = fixed(y + a11 * v);
+    }
+    w.row_x = row_x;
+    w.row_y = row_y;
+    w.xu = fixed(a00);
+    w.yu = fixed(a10);
   }
   using Affine = void (*)(ImageView<const uint8_t>, const LkAffineWarp&, int, const int16_t*,
                           const int16_t*, const int16_t*, int, LkAffineSums&);
@@ -100,8 +110,8 @@ int runKernels(int argc, const char* const* argv) {
     for (int r = 0; r < repeat; ++r) {
       const double t0 = cpuNs();
       for (const auto& w : warps) {
-        const LkBilinear b = lkBilinear((w.x >> 2) & 0x3fff, (w.y >> 2) & 0x3fff);
-        const uint8_t* window = image.row(w.y >> 16) + (w.x >> 16);
+        const LkBilinear b = lkBilinear((w.row_x[0] >> 2) & 0x3fff, (w.row_y[0] >> 2) & 0x3fff);
+        const uint8_t* window = image.row(w.row_y[0] >> 16) + (w.row_x[0] >> 16);
         LkWindowSums s;
         kernel(window, image.stride, side, b, T.data(), Sx.data(), Sy.data(), tstride, s);
         check += s.gx_e + s.sum_sq;

@@ -32,6 +32,7 @@ struct ShiTomasiOptions {
   int subpixel_radius = 4;      ///< refinement window (2r+1)^2
   int subpixel_dead_zone = 2;   ///< pixels within this (Chebyshev) distance of the centre unused
   int subpixel_iterations = 5;  ///< re-centring passes of the refinement
+  bool vector_kernels = true;   ///< SIMD response and maxima where available (same corners)
 };
 
 /// Grid of cells of side min_distance holding up to kPerCell points each, so the minimum-distance
@@ -93,6 +94,15 @@ class ShiTomasiDetector {
 
  private:
   void computeResponse(ImageView<const uint8_t> image);
+  void computeResponseScalar();
+  void computeResponseVector();
+  /// 3x3 local maxima of the response above `floor_response` on row y, columns [x0, x1) (the
+  /// vector variant: [b, width - b)), appended to the n candidates in increasing x; returns the
+  /// new count.
+  std::size_t rowMaximaScalar(int y, int x0, int x1, float floor_response, const uint8_t* mask,
+                              std::size_t n);
+  std::size_t rowMaximaVector(int y, int b, float floor_response, const uint8_t* mask,
+                              std::size_t n);
 
   ShiTomasiOptions options_;
   int width_ = 0;
@@ -101,6 +111,7 @@ class ShiTomasiDetector {
   Image<int16_t> dy_;
   Image<float> response_;
   AlignedBuffer<int32_t> row_sums_;  // 3 products x (2r+1) rows x width, horizontal sums
+  AlignedBuffer<int32_t> products_;  // 3 products x width of one row (the vector path)
   AlignedBuffer<Corner> candidates_;
   std::size_t candidate_capacity_ = 0;
   FeatureGrid grid_;

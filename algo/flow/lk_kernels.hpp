@@ -9,6 +9,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "algo/image/image_view.hpp"
+
 namespace epitrack {
 
 /// Fixed-point formats of the LK kernels (after OpenCV's lkpyramid W_BITS): bilinear weights in
@@ -61,5 +63,85 @@ void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int si
                              const int16_t* Sy, int tstride, LkWindowSums& out);
 /// "sse2", "neon" or "scalar": what lkTranslationSumsVector uses on this build.
 const char* lkVectorIsa();
+
+// ---- The affine iteration (PyramidalLk::alignAffine, Baker & Matthews 2004 §3.2) ---------------
+
+/// Warped positions of the affine iteration: 16.16 fixed point (kLkPosBits fractional bits).
+constexpr int kLkPosBits = 16;
+
+/// Where the template pixel (u, v) lies in the image: (row_x[v] + u xu, row_y[v] + u yu), 16.16
+/// fixed point: each row's start rounded from the affine warp once, then whole steps per column.
+struct LkAffineWarp {
+  const int32_t* row_x = nullptr;  ///< per template row: position of its first pixel
+  const int32_t* row_y = nullptr;
+  int32_t xu = 1 << kLkPosBits;  ///< step per template column
+  int32_t yu = 0;
+};
+
+/// The affine sample at the 16.16 position (X, Y), in 1/2^kLkValueBits gray levels: the fraction
+/// cut to kLkWeightBits, the four bilinear weights rounded and the last one the remainder, so they
+/// sum to 1 << kLkWeightBits exactly (as lkBilinear). Reads the pixel at (X >> 16, Y >> 16) and its
+/// right, lower and lower-right neighbours.
+inline int32_t lkAffineSample(const uint8_t* image, std::ptrdiff_t stride, int32_t X, int32_t Y) {
+  constexpr int kShift = kLkWeightBits - kLkValueBits;
+  constexpr int kCut = kLkPosBits - kLkWeightBits;
+  constexpr int32_t kFraction = (1 << kLkWeightBits) - 1;
+  const LkBilinear w = lkBilinear((X >> kCut) & kFraction, (Y >> kCut) & kFraction);
+  const uint8_t* r0 =
+      image + static_cast<std::ptrdiff_t>(Y >> kLkPosBits) * stride + (X >> kLkPosBits);
+  const uint8_t* r1 = r0 + stride;
+  return (w.w00 * r0[0] + w.w01 * r0[1] + w.w10 * r1[0] + w.w11 * r1[1] + (1 << (kShift - 1))) >>
+         kShift;
+}
+
+/// Window sums of one affine iteration, e = sample - template (1/32 gray levels), u and v the
+/// template column and row relative to the centre (u - side / 2, v - side / 2).
+struct LkAffineSums {
+  int64_t gx_e = 0;    ///< sum Sx e
+  int64_t gy_e = 0;    ///< sum Sy e
+  int64_t ugx_e = 0;   ///< sum u Sx e
+  int64_t vgx_e = 0;   ///< sum v Sx e
+  int64_t ugy_e = 0;   ///< sum u Sy e
+  int64_t vgy_e = 0;   ///< sum v Sy e
+  int64_t sum_e = 0;   ///< sum e
+  int64_t sum_sq = 0;  ///< sum e^2
+};
+
+/// One pass of the affine iteration over a side x side template warped by `warp` into `image`.
+/// Valid domain: every position of the window has 0 <= X >> 16 <= width - 2 and
+/// 0 <= Y >> 16 <= height - 2 (it suffices that each row's first and last pixel do: positions
+/// are linear along a row); `T`, `Sx`, `Sy` as for lkTranslationSumsScalar. The sums are exact
+/// integers (every product fits int32, the sums are int64), so every variant gives the same sums
+/// bit for bit.
+void lkAffineSumsScalar(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
+/// The same with 128-bit vectors (SSE2 / NEON; the scalar kernel where there are none, or for
+/// windows beyond 56): a software gather of the four neighbours per pixel (one contiguous load
+/// per row where the warped row of 8 pixels steps by exactly one pixel).
+void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                     const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                     LkAffineSums& out);
+/// True when this machine runs lkAffineSumsAvx2 (x86-64 with AVX2, checked once at run time).
+bool lkHaveAvx2();
+/// The same with AVX2, 8 pixels per step (byte shuffles of the window's rows, or gathers);
+/// lkAffineSums128 where AVX2 is missing (see lkHaveAvx2), for windows beyond 80, or when a
+/// gather's 4-byte read could pass the end of the image's last row.
+void lkAffineSumsAvx2(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                      const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                      LkAffineSums& out);
+/// True when this machine also has AVX-512 F, BW, VL and DQ (lkAffineSumsAvx512).
+bool lkHaveAvx512();
+/// The AVX2 kernel's method on two template rows per 512-bit step; lkAffineSumsAvx2 where
+/// AVX-512 is missing, lkAffineSums128 where the AVX2 kernel would use it.
+void lkAffineSumsAvx512(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
+/// The fastest of the above on this machine (chosen once).
+void lkAffineSumsVector(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
+                        const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
+                        LkAffineSums& out);
+/// "avx512", "avx2", "sse2", "neon" or "scalar": what lkAffineSumsVector uses on this machine.
+const char* lkAffineVectorIsa();
 
 }  // namespace epitrack

@@ -6,6 +6,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
+#include "algo/flow/simd_int16.hpp"
+
 namespace epitrack {
 
 const char* lkStatusName(LkStatus status) {
@@ -48,6 +50,8 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   levels_.assign(static_cast<std::size_t>(capacity_) * static_cast<std::size_t>(level_count_),
                  LevelTemplate{});
   affine_.assign(static_cast<std::size_t>(capacity_), AffineTemplate{});
+  row_x_.reserve(static_cast<std::size_t>(side_));
+  row_y_.reserve(static_cast<std::size_t>(side_));
 }
 
 namespace {
@@ -77,27 +81,144 @@ bool invertSymmetric3(const double (&m)[3][3], std::array<double, 9>& inv) {
   return true;
 }
 
-/// Warped positions of the affine alignment: 16.16 fixed point.
-constexpr int kPosBits = 16;
-constexpr double kPosOne = static_cast<double>(1 << kPosBits);
+/// std::lround for |value| < 2^31 (half away from zero) without the library call or a branch: the
+/// difference of a double and its truncation is exact.
+inline int32_t roundHalfAway(double value) {
+  const auto i = static_cast<int32_t>(value);
+  const double f = value - static_cast<double>(i);
+  return i + static_cast<int32_t>(f >= 0.5) - static_cast<int32_t>(f <= -0.5);
+}
 
-/// Bilinear sample of `image` at the 16.16 fixed-point position (X, Y), in 1/2^kValueBits gray
-/// levels: the fraction is cut to kWeightBits, the four weights rounded and summing to 1 exactly.
-inline int32_t sampleAt16(ImageView<const uint8_t> image, int32_t X, int32_t Y) {
-  constexpr int kOne = 1 << PyramidalLk::kWeightBits;
-  constexpr int kShift = PyramidalLk::kWeightBits - PyramidalLk::kValueBits;
-  constexpr int kRound = 1 << (kShift - 1);
-  const int ix = X >> kPosBits;
-  const int iy = Y >> kPosBits;
-  const int32_t fx = (X & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
-  const int32_t fy = (Y & ((1 << kPosBits) - 1)) >> (kPosBits - PyramidalLk::kWeightBits);
-  const int32_t w00 = ((kOne - fx) * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w01 = (fx * (kOne - fy) + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w10 = ((kOne - fx) * fy + (kOne >> 1)) >> PyramidalLk::kWeightBits;
-  const int32_t w11 = kOne - w00 - w01 - w10;
-  const uint8_t* r0 = image.row(iy) + ix;
-  const uint8_t* r1 = r0 + image.stride;
-  return (w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1] + kRound) >> kShift;
+/// The 16.16 positions of a side x side window (half = side / 2) with centre (cx, cy) and shape A
+/// (template to image) for the affine kernels: each row's first pixel rounded from the warp, the
+/// step per column rounded once (Bouguet-style fixed point, as the scalar loop before the vector
+/// kernels). False when the window leaves the image: its corners with their bilinear neighbours in
+/// floating point, then, exactly, every row's first and last pixel.
+bool rowWarp(double cx, double cy, const double (&A)[4], int half, int side, int width, int height,
+             int32_t* row_x, int32_t* row_y, LkAffineWarp& warp) {
+  constexpr double kPosOne = static_cast<double>(1 << kLkPosBits);
+  const double h = half;
+  double min_x = 1e30, max_x = -1e30, min_y = 1e30, max_y = -1e30;
+  for (const double su : {-h, h}) {
+    for (const double sv : {-h, h}) {
+      const double wx = cx + A[0] * su + A[1] * sv;
+      const double wy = cy + A[2] * su + A[3] * sv;
+      min_x = std::min(min_x, wx);
+      max_x = std::max(max_x, wx);
+      min_y = std::min(min_y, wy);
+      max_y = std::max(max_y, wy);
+    }
+  }
+  if (!(min_x >= 0.0 && min_y >= 0.0 && max_x < width - 1 && max_y < height - 1)) return false;
+  warp.xu = roundHalfAway(A[0] * kPosOne);
+  warp.yu = roundHalfAway(A[2] * kPosOne);
+  const int32_t x_limit = (width - 1) << kLkPosBits;  // X >> 16 <= width - 2
+  const int32_t y_limit = (height - 1) << kLkPosBits;
+  for (int v = 0; v < side; ++v) {
+    const double dv = v - h;
+    row_x[v] = roundHalfAway((cx - A[0] * h + A[1] * dv) * kPosOne);
+    row_y[v] = roundHalfAway((cy - A[2] * h + A[3] * dv) * kPosOne);
+  }
+  const int32_t du = (side - 1) * warp.xu;
+  const int32_t eu = (side - 1) * warp.yu;
+  int32_t x_lo = row_x[0], x_hi = row_x[0], y_lo = row_y[0], y_hi = row_y[0];
+  for (int v = 0; v < side; ++v) {
+    x_lo = std::min({x_lo, row_x[v], row_x[v] + du});
+    x_hi = std::max({x_hi, row_x[v], row_x[v] + du});
+    y_lo = std::min({y_lo, row_y[v], row_y[v] + eu});
+    y_hi = std::max({y_hi, row_y[v], row_y[v] + eu});
+  }
+  if (x_lo < 0 || y_lo < 0 || x_hi >= x_limit || y_hi >= y_limit) return false;
+  warp.row_x = row_x;
+  warp.row_y = row_y;
+  return true;
+}
+
+/// Window sums of a template level (exact integers): gradient products and sums, intensities.
+struct TemplateSums {
+  int64_t gxx = 0, gxy = 0, gyy = 0, gx = 0, gy = 0, t = 0, tt = 0;
+};
+
+/// One template row: `src` the image pixel above-left of the row's first pixel (rows of
+/// `stride`, side + 2 columns and 3 rows are read), out the values (<< kLkValueBits), the Scharr
+/// gradients (Scharr 2000, unnormalised: 32 x the intensity gradient) and zeros up to `tstride`.
+/// `vector`: SSE2 / NEON where available (the same values).
+void templateRow(const uint8_t* src, std::ptrdiff_t stride, int side, int tstride, int16_t* T,
+                 int16_t* Sx, int16_t* Sy, TemplateSums& sums, bool vector) {
+  const uint8_t* r0 = src;
+  const uint8_t* r1 = src + stride;
+  const uint8_t* r2 = src + 2 * stride;
+  int u = 0;
+#if EPITRACK_LK_SIMD
+  if (vector) {
+    using namespace simd;
+    // Pairs of columns per int32 lane: products <= 2 * 4080^2 < 2^25, 3 groups of 8 at most
+    // before the row's sums go to int64 (each sum below 2^27).
+    const I16x8 three = set16(3), ten = set16(10), ones = set16(1);
+    I32x4 gxx = zero32(), gxy = zero32(), gyy = zero32(), gx = zero32(), gy = zero32();
+    I32x4 t = zero32(), tt = zero32();
+    for (; u + 8 <= side; u += 8) {
+      // Columns u - 1 .. u + 8 of the three rows (src is one column left of the row).
+      const I16x8 ul = loadWidenU8(r0 + u), uc = loadWidenU8(r0 + u + 1),
+                  ur = loadWidenU8(r0 + u + 2);
+      const I16x8 ml = loadWidenU8(r1 + u), mc = loadWidenU8(r1 + u + 1),
+                  mr = loadWidenU8(r1 + u + 2);
+      const I16x8 dl = loadWidenU8(r2 + u), dc = loadWidenU8(r2 + u + 1),
+                  dr = loadWidenU8(r2 + u + 2);
+      const I16x8 ggx =
+          add16(mul16(sub16(add16(ur, dr), add16(ul, dl)), three), mul16(sub16(mr, ml), ten));
+      const I16x8 ggy =
+          add16(mul16(add16(sub16(dl, ul), sub16(dr, ur)), three), mul16(sub16(dc, uc), ten));
+      storeI16(T + u, sll16<kLkValueBits>(mc));
+      storeI16(Sx + u, ggx);
+      storeI16(Sy + u, ggy);
+      gxx = add32(gxx, madd(ggx, ggx));
+      gxy = add32(gxy, madd(ggx, ggy));
+      gyy = add32(gyy, madd(ggy, ggy));
+      gx = add32(gx, madd(ggx, ones));
+      gy = add32(gy, madd(ggy, ones));
+      t = add32(t, madd(mc, ones));
+      tt = add32(tt, madd(mc, mc));
+      if (u % 24 == 16) {  // after 3 groups
+        sums.gxx += sum32(gxx);
+        sums.gxy += sum32(gxy);
+        sums.gyy += sum32(gyy);
+        gxx = gxy = gyy = zero32();
+      }
+    }
+    sums.gxx += sum32(gxx);
+    sums.gxy += sum32(gxy);
+    sums.gyy += sum32(gyy);
+    sums.gx += sum32(gx);
+    sums.gy += sum32(gy);
+    sums.t += sum32(t);
+    sums.tt += sum32(tt);
+  }
+#else
+  static_cast<void>(vector);
+#endif
+  for (; u < side; ++u) {
+    const int xx = u + 1;
+    const int gx = 3 * (r0[xx + 1] - r0[xx - 1]) + 10 * (r1[xx + 1] - r1[xx - 1]) +
+                   3 * (r2[xx + 1] - r2[xx - 1]);
+    const int gy =
+        3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
+    T[u] = static_cast<int16_t>(r1[xx] << kLkValueBits);
+    Sx[u] = static_cast<int16_t>(gx);
+    Sy[u] = static_cast<int16_t>(gy);
+    sums.gxx += gx * gx;
+    sums.gxy += gx * gy;
+    sums.gyy += gy * gy;
+    sums.gx += gx;
+    sums.gy += gy;
+    sums.t += r1[xx];
+    sums.tt += r1[xx] * r1[xx];
+  }
+  for (; u < tstride; ++u) {  // the vector kernels' zero padding
+    T[u] = 0;
+    Sx[u] = 0;
+    Sy[u] = 0;
+  }
 }
 
 }  // namespace
@@ -109,18 +230,81 @@ void PyramidalLk::setAffineHessian(int slot) {
   const std::size_t base = patchIndex(slot, 0);
   const int16_t* Sx = grad_x_.data() + base;
   const int16_t* Sy = grad_y_.data() + base;
-  Eigen::Matrix<double, 7, 7> H = Eigen::Matrix<double, 7, 7>::Zero();
-  Eigen::Matrix<double, 7, 1> J;
+  // Gauss-Newton Hessian sum J J^T over the window, J = [gx, gy, u gx, v gx, u gy, v gy, 32]
+  // (u, v from the centre; Baker & Matthews 2004 §3.2), from exact integer moments: per row the
+  // sums of q = gx^2, gx gy, gy^2 with weights 1, u, u^2 (and of gx, gy with 1, u), then over the
+  // rows with weights 1, v, v^2. Every entry is an integer below 2^53, so the doubles are exact.
+  int64_t m[3][6] = {};   // q; weights 1, u, v, u^2, u v, v^2
+  int64_t s1[2][3] = {};  // gx, gy; weights 1, u, v
   for (int v = 0; v < side_; ++v) {
+    int64_t r[3][3] = {};
+    int64_t rg[2][2] = {};
+    const int16_t* sx = Sx + v * tstride_;
+    const int16_t* sy = Sy + v * tstride_;
     for (int u = 0; u < side_; ++u) {
-      const double gx = Sx[v * tstride_ + u];
-      const double gy = Sy[v * tstride_ + u];
-      const double du = u - half_;
-      const double dv = v - half_;
-      J << gx, gy, du * gx, dv * gx, du * gy, dv * gy, static_cast<double>(1 << kValueBits);
-      H.selfadjointView<Eigen::Lower>().rankUpdate(J);
+      const int64_t du = u - half_;
+      const int32_t gx = sx[u];
+      const int32_t gy = sy[u];
+      const int64_t q[3] = {gx * gx, gx * gy, gy * gy};  // < 2^24 each
+      for (int i = 0; i < 3; ++i) {
+        r[i][0] += q[i];
+        r[i][1] += du * q[i];
+        r[i][2] += du * du * q[i];
+      }
+      rg[0][0] += gx;
+      rg[0][1] += du * gx;
+      rg[1][0] += gy;
+      rg[1][1] += du * gy;
+    }
+    const int64_t dv = v - half_;
+    for (int i = 0; i < 3; ++i) {
+      m[i][0] += r[i][0];
+      m[i][1] += r[i][1];
+      m[i][2] += dv * r[i][0];
+      m[i][3] += r[i][2];
+      m[i][4] += dv * r[i][1];
+      m[i][5] += dv * dv * r[i][0];
+    }
+    for (int k = 0; k < 2; ++k) {
+      s1[k][0] += rg[k][0];
+      s1[k][1] += rg[k][1];
+      s1[k][2] += dv * rg[k][0];
     }
   }
+  enum { kXX, kXY, kYY };
+  enum { k1, kU, kV, kUU, kUV, kVV };
+  const auto f = [](int64_t x) { return static_cast<double>(x); };
+  const double c = 1 << kValueBits;  // the bias column of J
+  Eigen::Matrix<double, 7, 7> H;
+  // Lower triangle, row by row; column 6 (the bias) last.
+  H(0, 0) = f(m[kXX][k1]);
+  H(1, 0) = f(m[kXY][k1]);
+  H(1, 1) = f(m[kYY][k1]);
+  H(2, 0) = f(m[kXX][kU]);
+  H(2, 1) = f(m[kXY][kU]);
+  H(2, 2) = f(m[kXX][kUU]);
+  H(3, 0) = f(m[kXX][kV]);
+  H(3, 1) = f(m[kXY][kV]);
+  H(3, 2) = f(m[kXX][kUV]);
+  H(3, 3) = f(m[kXX][kVV]);
+  H(4, 0) = f(m[kXY][kU]);
+  H(4, 1) = f(m[kYY][kU]);
+  H(4, 2) = f(m[kXY][kUU]);
+  H(4, 3) = f(m[kXY][kUV]);
+  H(4, 4) = f(m[kYY][kUU]);
+  H(5, 0) = f(m[kXY][kV]);
+  H(5, 1) = f(m[kYY][kV]);
+  H(5, 2) = f(m[kXY][kUV]);
+  H(5, 3) = f(m[kXY][kVV]);
+  H(5, 4) = f(m[kYY][kUV]);
+  H(5, 5) = f(m[kYY][kVV]);
+  H(6, 0) = c * f(s1[0][k1]);
+  H(6, 1) = c * f(s1[1][k1]);
+  H(6, 2) = c * f(s1[0][kU]);
+  H(6, 3) = c * f(s1[0][kV]);
+  H(6, 4) = c * f(s1[1][kU]);
+  H(6, 5) = c * f(s1[1][kV]);
+  H(6, 6) = c * c * static_cast<double>(area_);
   H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
   // Damping of the four shape parameters (Tikhonov, towards no change): at a corner whose edges
   // pass through the centre, stretching along an edge is unobservable and an undamped step in
@@ -174,38 +358,17 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     int16_t* T = value_.data() + base;
     int16_t* Sx = grad_x_.data() + base;
     int16_t* Sy = grad_y_.data() + base;
-    double sxx = 0.0, sxy = 0.0, syy = 0.0, sx = 0.0, sy = 0.0, st = 0.0, stt = 0.0;
+    TemplateSums sums;
     for (int v = 0; v < side_; ++v) {
       const int yy = cy - half_ + v;
-      const uint8_t* r0 = img.row(yy - 1);
-      const uint8_t* r1 = img.row(yy);
-      const uint8_t* r2 = img.row(yy + 1);
-      for (int u = 0; u < side_; ++u) {
-        const int xx = cx - half_ + u;
-        // Scharr 2000 kernel, unnormalised (32 x the intensity gradient).
-        const int gx = 3 * (r0[xx + 1] - r0[xx - 1]) + 10 * (r1[xx + 1] - r1[xx - 1]) +
-                       3 * (r2[xx + 1] - r2[xx - 1]);
-        const int gy =
-            3 * (r2[xx - 1] - r0[xx - 1]) + 10 * (r2[xx] - r0[xx]) + 3 * (r2[xx + 1] - r0[xx + 1]);
-        const int i = v * tstride_ + u;
-        T[i] = static_cast<int16_t>(r1[xx] << kValueBits);
-        st += r1[xx];
-        stt += r1[xx] * r1[xx];
-        Sx[i] = static_cast<int16_t>(gx);
-        Sy[i] = static_cast<int16_t>(gy);
-        sxx += gx * gx;
-        sxy += gx * gy;
-        syy += gy * gy;
-        sx += gx;
-        sy += gy;
-      }
-      for (int u = side_; u < tstride_; ++u) {  // the vector kernels' zero padding
-        const int i = v * tstride_ + u;
-        T[i] = 0;
-        Sx[i] = 0;
-        Sy[i] = 0;
-      }
+      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(tstride_);
+      templateRow(img.row(yy - 1) + (cx - half_ - 1), img.stride, side_, tstride_, T + i, Sx + i,
+                  Sy + i, sums, options_.vector_kernels);
     }
+    const double sxx = static_cast<double>(sums.gxx), sxy = static_cast<double>(sums.gxy);
+    const double syy = static_cast<double>(sums.gyy), sx = static_cast<double>(sums.gx);
+    const double sy = static_cast<double>(sums.gy), st = static_cast<double>(sums.t);
+    const double stt = static_cast<double>(sums.tt);
     // Gauss-Newton Hessian of the residual e = I(W(x; p)) - T(x) - b over [dx, dy, b], with the
     // Jacobian row [Sx, Sy, 32] in the units of e (1/32 gray levels); Baker & Matthews 2004 eq. 36.
     const double n = static_cast<double>(area_);
@@ -213,15 +376,21 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
     // relative to it, so one threshold serves faint and strong corners (gain normalisation).
     lt.contrast = std::sqrt(std::max(stt / n - (st / n) * (st / n), 1.0));
     if (l == 0) {
-      double ct = 0.0, ctt = 0.0;
+      // The same over the residual's central window (the whole window: the sums above).
       const int r = residual_radius_;
-      for (int v = half_ - r; v <= half_ + r; ++v) {
-        for (int u = half_ - r; u <= half_ + r; ++u) {
-          const double value = T[v * tstride_ + u] >> kValueBits;
-          ct += value;
-          ctt += value * value;
+      int64_t ict = sums.t, ictt = sums.tt;
+      if (r < half_) {
+        ict = 0;
+        ictt = 0;
+        for (int v = half_ - r; v <= half_ + r; ++v) {
+          for (int u = half_ - r; u <= half_ + r; ++u) {
+            const int value = T[v * tstride_ + u] >> kValueBits;
+            ict += value;
+            ictt += value * value;
+          }
         }
       }
+      const double ct = static_cast<double>(ict), ctt = static_cast<double>(ictt);
       const double m = static_cast<double>((2 * r + 1) * (2 * r + 1));
       lt.centre_contrast = std::sqrt(std::max(ctt / m - (ct / m) * (ct / m), 1.0));
     }
@@ -332,55 +501,21 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
   const double h = half_;
   double last_step2 = 0.0;
   for (int it = 0; it < options_.max_iterations; ++it) {
-    // The warped window's corners must stay inside the image (with the bilinear neighbour).
-    double min_x = 1e30, max_x = -1e30, min_y = 1e30, max_y = -1e30;
-    for (const double su : {-h, h}) {
-      for (const double sv : {-h, h}) {
-        const double wx = cx + A[0] * su + A[1] * sv;
-        const double wy = cy + A[2] * su + A[3] * sv;
-        min_x = std::min(min_x, wx);
-        max_x = std::max(max_x, wx);
-        min_y = std::min(min_y, wy);
-        max_y = std::max(max_y, wy);
-      }
-    }
-    if (!(min_x >= 0.0 && min_y >= 0.0 && max_x < image.width - 1 && max_y < image.height - 1)) {
+    // The warped window must stay inside the image (with the bilinear neighbours).
+    LkAffineWarp warp;
+    if (!rowWarp(cx, cy, A, half_, side_, image.width, image.height, row_x_.data(), row_y_.data(),
+                 warp)) {
       return LkStatus::kLeftImage;
     }
     ++iterations_;
-    const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
-    const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
-    int64_t s_gx = 0, s_gy = 0, s_ugx = 0, s_vgx = 0, s_ugy = 0, s_vgy = 0, s_e = 0, s_sq = 0;
-    for (int v = 0; v < side_; ++v) {
-      const double dv = v - h;
-      auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
-      auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-      const int16_t* t = T + v * tstride_;
-      const int16_t* sx = Sx + v * tstride_;
-      const int16_t* sy = Sy + v * tstride_;
-      int32_t row_gx = 0, row_gy = 0, row_e = 0;
-      int64_t row_ugx = 0, row_ugy = 0, row_sq = 0;
-      for (int u = 0; u < side_; ++u, X += step_x, Y += step_y) {
-        const int32_t e = sampleAt16(image, X, Y) - t[u];
-        const int32_t ge_x = sx[u] * e;
-        const int32_t ge_y = sy[u] * e;
-        row_gx += ge_x;
-        row_gy += ge_y;
-        row_ugx += static_cast<int64_t>(u - half_) * ge_x;
-        row_ugy += static_cast<int64_t>(u - half_) * ge_y;
-        row_e += e;
-        row_sq += e * e;
-      }
-      const int64_t iv = v - half_;
-      s_gx += row_gx;
-      s_gy += row_gy;
-      s_ugx += row_ugx;
-      s_ugy += row_ugy;
-      s_vgx += iv * row_gx;
-      s_vgy += iv * row_gy;
-      s_e += row_e;
-      s_sq += row_sq;
+    LkAffineSums sums;
+    if (options_.vector_kernels) {
+      lkAffineSumsVector(image, warp, side_, T, Sx, Sy, tstride_, sums);
+    } else {
+      lkAffineSumsScalar(image, warp, side_, T, Sx, Sy, tstride_, sums);
     }
+    const int64_t s_gx = sums.gx_e, s_gy = sums.gy_e, s_ugx = sums.ugx_e, s_vgx = sums.vgx_e;
+    const int64_t s_ugy = sums.ugy_e, s_vgy = sums.vgy_e, s_e = sums.sum_e, s_sq = sums.sum_sq;
     const double g[7] = {static_cast<double>(s_gx),
                          static_cast<double>(s_gy),
                          static_cast<double>(s_ugx),
@@ -433,30 +568,19 @@ LkStatus PyramidalLk::alignAffine(int slot, ImageView<const uint8_t> image, doub
 double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, double cx, double cy,
                                    const double (&A)[4]) const {
   const int r = residual_radius_;
-  const double h = r;
-  for (const double su : {-h, h}) {
-    for (const double sv : {-h, h}) {
-      const double wx = cx + A[0] * su + A[1] * sv;
-      const double wy = cy + A[2] * su + A[3] * sv;
-      if (!(wx >= 0.0 && wy >= 0.0 && wx < image.width - 1 && wy < image.height - 1)) return -1.0;
-    }
+  LkAffineWarp warp;
+  if (!rowWarp(cx, cy, A, r, 2 * r + 1, image.width, image.height, row_x_.data(), row_y_.data(),
+               warp)) {
+    return -1.0;
   }
-  const int16_t* T = value_.data() + patchIndex(slot, 0);
-  const auto step_x = static_cast<int32_t>(std::lround(A[0] * kPosOne));
-  const auto step_y = static_cast<int32_t>(std::lround(A[2] * kPosOne));
-  int64_t s_e = 0, s_sq = 0;
-  for (int v = half_ - r; v <= half_ + r; ++v) {
-    const double dv = v - half_;
-    auto X = static_cast<int32_t>(std::lround((cx - A[0] * h + A[1] * dv) * kPosOne));
-    auto Y = static_cast<int32_t>(std::lround((cy - A[2] * h + A[3] * dv) * kPosOne));
-    const int16_t* t = T + v * tstride_;
-    for (int u = half_ - r; u <= half_ + r; ++u, X += step_x, Y += step_y) {
-      const int32_t e = sampleAt16(image, X, Y) - t[u];
-      s_e += e;
-      s_sq += e * e;
-    }
-  }
-  const double rms = rmsAfterBias(s_e, s_sq, (2 * r + 1) * (2 * r + 1));
+  // The central (2r+1)^2 pixels of the base template, sampled as alignAffine does (the scalar
+  // kernel: it reads only the window's columns, not the padding beyond them).
+  const std::size_t offset =
+      patchIndex(slot, 0) + static_cast<std::size_t>((half_ - r) * tstride_ + (half_ - r));
+  LkAffineSums sums;
+  lkAffineSumsScalar(image, warp, 2 * r + 1, value_.data() + offset, grad_x_.data() + offset,
+                     grad_y_.data() + offset, tstride_, sums);
+  const double rms = rmsAfterBias(sums.sum_e, sums.sum_sq, (2 * r + 1) * (2 * r + 1));
   return rms / levels_[static_cast<std::size_t>(slot * level_count_)].centre_contrast;
 }
 

@@ -146,7 +146,9 @@ class PyramidalLk {
     bool valid = false;
     std::array<double, 49> H_inv{};  ///< inverse 7x7 Hessian over (dx, dy, d00, d01, d10, d11, b)
   };
-  std::vector<AffineTemplate> affine_;  // one per slot (base level)
+  std::vector<AffineTemplate> affine_;    // one per slot (base level)
+  mutable AlignedBuffer<int32_t> row_x_;  // the affine warp's row positions (scratch, side_)
+  mutable AlignedBuffer<int32_t> row_y_;
   mutable long iterations_ = 0;
 };
 

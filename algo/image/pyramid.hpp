@@ -15,7 +15,10 @@ namespace epitrack {
 /// the horizontal pass rounds once, out = (sum of the 25 weights * pixels + 128) >> 8.
 /// Border: reflect-101 (see border.hpp). `dst` must be ((src.width+1)/2, (src.height+1)/2);
 /// `row_scratch` holds at least src.width values. Never allocates.
+/// SSE2 / NEON where available (algo/flow/simd_int16.hpp), the same bytes as pyrDownScalar.
 void pyrDown(ImageView<const uint8_t> src, ImageView<uint8_t> dst, uint16_t* row_scratch);
+/// The scalar reference of pyrDown.
+void pyrDownScalar(ImageView<const uint8_t> src, ImageView<uint8_t> dst, uint16_t* row_scratch);
 
 /// Size of level `level` for a base of `base` pixels: each level is ceil(previous / 2).
 [[nodiscard]] constexpr int pyramidLevelExtent(int base, int level) {

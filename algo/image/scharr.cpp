@@ -1,10 +1,12 @@
 #include "algo/image/scharr.hpp"
 
+#include "algo/flow/simd_int16.hpp"
 #include "algo/image/border.hpp"
 
 namespace epitrack {
 
-void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageView<int16_t> dy) {
+void scharrGradientsScalar(ImageView<const uint8_t> src, ImageView<int16_t> dx,
+                           ImageView<int16_t> dy) {
   EPITRACK_ASSERT(sameSize(src, dx) && sameSize(src, dy));
   const int w = src.width;
   const int h = src.height;
@@ -38,6 +40,55 @@ void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageV
     }
     at(w - 1);
   }
+}
+
+void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageView<int16_t> dy) {
+#if EPITRACK_LK_SIMD
+  EPITRACK_ASSERT(sameSize(src, dx) && sameSize(src, dy));
+  const int w = src.width;
+  const int h = src.height;
+  if (w < 10) {
+    scharrGradientsScalar(src, dx, dy);
+    return;
+  }
+  using namespace simd;
+  const I16x8 three = set16(3);
+  const I16x8 ten = set16(10);
+  for (int y = 0; y < h; ++y) {
+    const uint8_t* up = src.row(reflect101(y - 1, h));
+    const uint8_t* mid = src.row(y);
+    const uint8_t* down = src.row(reflect101(y + 1, h));
+    int16_t* ox = dx.row(y);
+    int16_t* oy = dy.row(y);
+    const auto at = [&](int x) {
+      const int xl = reflect101(x - 1, w);
+      const int xr = reflect101(x + 1, w);
+      ox[x] = static_cast<int16_t>(3 * (up[xr] - up[xl]) + 10 * (mid[xr] - mid[xl]) +
+                                   3 * (down[xr] - down[xl]));
+      oy[x] = static_cast<int16_t>(3 * (down[xl] - up[xl]) + 10 * (down[x] - up[x]) +
+                                   3 * (down[xr] - up[xr]));
+    };
+    at(0);
+    // 8 columns per step, reading columns x - 1 .. x + 8 (|sums| <= 16 * 255: int16).
+    int x = 1;
+    for (; x + 9 <= w; x += 8) {
+      const I16x8 ul = loadWidenU8(up + x - 1), uc = loadWidenU8(up + x),
+                  ur = loadWidenU8(up + x + 1);
+      const I16x8 ml = loadWidenU8(mid + x - 1), mr = loadWidenU8(mid + x + 1);
+      const I16x8 dl = loadWidenU8(down + x - 1), dc = loadWidenU8(down + x),
+                  dr = loadWidenU8(down + x + 1);
+      const I16x8 gx =
+          add16(mul16(sub16(add16(ur, dr), add16(ul, dl)), three), mul16(sub16(mr, ml), ten));
+      const I16x8 gy =
+          add16(mul16(add16(sub16(dl, ul), sub16(dr, ur)), three), mul16(sub16(dc, uc), ten));
+      storeI16(ox + x, gx);
+      storeI16(oy + x, gy);
+    }
+    for (; x < w; ++x) at(x);
+  }
+#else
+  scharrGradientsScalar(src, dx, dy);
+#endif
 }
 
 }  // namespace epitrack

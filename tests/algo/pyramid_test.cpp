@@ -61,6 +61,48 @@ TEST_CASE("pyrDown is bit-exact against the naive 5x5 reference", "[image][pyram
     INFO("size " << s[0] << "x" << s[1]);
     for (int y = 0; y < ref.height(); ++y)
       for (int x = 0; x < ref.width(); ++x) REQUIRE(fast(x, y) == ref(x, y));
+    epitrack::pyrDownScalar(src.constView(), fast.view(), scratch.data());
+    for (int y = 0; y < ref.height(); ++y)
+      for (int x = 0; x < ref.width(); ++x) REQUIRE(fast(x, y) == ref(x, y));
+  }
+}
+
+TEST_CASE("pyrDown (SSE2 / NEON) gives the scalar reference's bytes for every width",
+          "[image][pyramid][simd]") {
+  // Widths around the vector steps (16 columns, 8 outputs) and the borders; scratch rows of
+  // exactly the source width, so a read beyond them shows under the sanitizers.
+  uint32_t seed = 100;
+  for (int w = 1; w <= 90; ++w) {
+    for (const int h : {1, 2, 5, 9}) {
+      Image<uint8_t> src(w, h);
+      epitrack::test::fillRandom(src.view(), seed++);
+      Image<uint8_t> fast((w + 1) / 2, (h + 1) / 2);
+      Image<uint8_t> ref((w + 1) / 2, (h + 1) / 2);
+      std::vector<uint16_t> scratch(static_cast<std::size_t>(w));
+      epitrack::pyrDown(src.constView(), fast.view(), scratch.data());
+      epitrack::pyrDownScalar(src.constView(), ref.view(), scratch.data());
+      INFO("size " << w << "x" << h);
+      for (int y = 0; y < ref.height(); ++y)
+        for (int x = 0; x < ref.width(); ++x) REQUIRE(fast(x, y) == ref(x, y));
+    }
+  }
+  for (const int w : {703, 704, 705, 1241}) {
+    Image<uint8_t> src(w, 37);
+    Image<uint8_t> fast((w + 1) / 2, 19);
+    Image<uint8_t> ref((w + 1) / 2, 19);
+    std::vector<uint16_t> scratch(static_cast<std::size_t>(w));
+    for (const int mode : {0, 1}) {  // random, then all 255 (the largest sums)
+      if (mode == 0) {
+        epitrack::test::fillRandom(src.view(), seed++);
+      } else {
+        for (int y = 0; y < 37; ++y)
+          for (int x = 0; x < w; ++x) src(x, y) = 255;
+      }
+      epitrack::pyrDown(src.constView(), fast.view(), scratch.data());
+      epitrack::pyrDownScalar(src.constView(), ref.view(), scratch.data());
+      for (int y = 0; y < ref.height(); ++y)
+        for (int x = 0; x < ref.width(); ++x) REQUIRE(fast(x, y) == ref(x, y));
+    }
   }
 }
 

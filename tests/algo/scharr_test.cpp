@@ -53,6 +53,31 @@ TEST_CASE("Scharr gradients are bit-exact against the naive 3x3 reference", "[im
   }
 }
 
+TEST_CASE("Scharr gradients (SSE2 / NEON) equal the scalar reference for every width",
+          "[image][gradient][simd]") {
+  uint32_t seed = 77;
+  for (int w = 1; w <= 70; ++w) {
+    for (const int h : {1, 2, 3, 6}) {
+      Image<uint8_t> src(w, h);
+      epitrack::test::fillRandom(src.view(), seed++);
+      if (w % 7 == 0) {  // extremes: a 0/255 checkerboard of 2x2 cells (gradients of +-4080)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) src(x, y) = ((x / 2 + y / 2) % 2 == 0) ? 255 : 0;
+      }
+      Image<int16_t> dx(w, h), dy(w, h), rx(w, h), ry(w, h);
+      epitrack::scharrGradients(src.constView(), dx.view(), dy.view());
+      epitrack::scharrGradientsScalar(src.constView(), rx.view(), ry.view());
+      INFO("size " << w << "x" << h);
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          REQUIRE(dx(x, y) == rx(x, y));
+          REQUIRE(dy(x, y) == ry(x, y));
+        }
+      }
+    }
+  }
+}
+
 TEST_CASE("Scharr of a linear ramp is 32 times its slope", "[image][gradient]") {
   Image<uint8_t> ramp(20, 10);
   for (int y = 0; y < 10; ++y)

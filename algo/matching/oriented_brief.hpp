@@ -1,0 +1,67 @@
+#pragma once
+
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <vector>
+
+#include "algo/image/image_view.hpp"
+
+namespace epitrack {
+
+/// A 256-bit binary descriptor.
+struct BinaryDescriptor {
+  std::array<uint64_t, 4> bits{};
+};
+
+/// Number of differing bits (0..256).
+[[nodiscard]] inline int hammingDistance(const BinaryDescriptor& a, const BinaryDescriptor& b) {
+  return std::popcount(a.bits[0] ^ b.bits[0]) + std::popcount(a.bits[1] ^ b.bits[1]) +
+         std::popcount(a.bits[2] ^ b.bits[2]) + std::popcount(a.bits[3] ^ b.bits[3]);
+}
+
+/// Summed-area table of an 8-bit image: `out` is (width + 1) x (height + 1), out(x, y) the sum of
+/// the pixels above and left of (x, y). uint32 holds any image up to 16 Mpixel.
+void integralImage(ImageView<const uint8_t> image, ImageView<uint32_t> out);
+
+/// Oriented BRIEF in the manner of ORB (Rublee, Rabaud, Konolige & Bradski, ICCV 2011; BRIEF:
+/// Calonder et al., ECCV 2010): 256 intensity comparisons between 5x5 box means at point pairs of
+/// a fixed pattern, the pattern rotated to the patch orientation given by the intensity centroid
+/// (Rosin 1999; ORB §3.2). The pattern is drawn once from a seeded generator (BRIEF's G II:
+/// isotropic, near-Gaussian with sigma = patch size / 5, here the sum of four uniforms) inside a
+/// disc of radius kPatchRadius, and pre-rotated into kAngleBins orientations with integer
+/// (Q14) cosines, so every descriptor is integer arithmetic and identical on every platform.
+/// Unlike ORB the pairs are not learnt (no training set): they are random and de-duplicated.
+class OrientedBrief {
+ public:
+  static constexpr int kPatchRadius = 15;  ///< pattern disc and centroid disc radius, px
+  static constexpr int kBoxRadius = 2;     ///< 5x5 box means
+  static constexpr int kAngleBins = 30;    ///< 12 degrees each
+  /// A keypoint needs this many pixels to every image edge (the rotated pattern and its boxes).
+  static constexpr int kBorder = kPatchRadius + kBoxRadius + 1;
+
+  explicit OrientedBrief(uint64_t seed = 0x6272696566ULL);
+
+  /// Orientation bin (0..kAngleBins-1, counter-clockwise in image coordinates x right, y down)
+  /// of the intensity centroid of the disc of radius kPatchRadius around pixel (x, y);
+  /// (x, y) must be at least kBorder from every edge.
+  [[nodiscard]] int orientationBin(ImageView<const uint8_t> image, int x, int y) const;
+
+  /// The descriptor of pixel (x, y) for orientation `bin` from the image's integral image
+  /// (`integralImage`); (x, y) at least kBorder from every edge of the image.
+  void describe(ImageView<const uint32_t> integral, int x, int y, int bin,
+                BinaryDescriptor& out) const;
+
+  /// Angle of a bin centre, radians.
+  [[nodiscard]] static double binAngle(int bin);
+
+ private:
+  struct Pair {
+    int8_t x1, y1, x2, y2;
+  };
+  std::vector<Pair> pattern_;  // kAngleBins x 256, rotated
+  std::array<int, kPatchRadius + 1> disc_half_width_{};
+  std::array<int32_t, kAngleBins> cos_q14_{}, sin_q14_{};
+};
+
+}  // namespace epitrack

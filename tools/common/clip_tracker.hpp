@@ -70,6 +70,8 @@ class ClipTracker {
   [[nodiscard]] Matcher chosen() const { return chosen_; }
   /// One line on what was chosen and why ("" before the decision).
   [[nodiscard]] const std::string& decision() const { return decision_; }
+  /// The LK tracker while it runs (its frame statistics), else nullptr.
+  [[nodiscard]] const FeatureTracker* lkTracker() const { return lk_.get(); }
   /// The descriptor tracker when chosen (its pair statistics), else nullptr.
   [[nodiscard]] const DescriptorTracker* descriptorTracker() const { return descriptors_.get(); }
 

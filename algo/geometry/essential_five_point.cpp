@@ -56,17 +56,18 @@ struct ProductTable {
 };
 constexpr ProductTable kProduct{};
 
-Poly multiply(const Poly& p, const Poly& q) {
+// The monomials are ordered by decreasing degree: a polynomial of degree d has its non-zero
+// coefficients from kFirstOfDegree[d] on (linear: x y z 1, quadratic: from x^2).
+constexpr int kFirstOfDegree[4] = {19, 16, 10, 0};
+
+Poly multiply(const Poly& p, int p_degree, const Poly& q, int q_degree) {
   Poly r{};
-  for (int i = 0; i < kMonomials; ++i) {
+  for (int i = kFirstOfDegree[p_degree]; i < kMonomials; ++i) {
     const double pi = p[static_cast<std::size_t>(i)];
-    if (pi == 0.0) continue;
-    for (int j = 0; j < kMonomials; ++j) {
-      const double qj = q[static_cast<std::size_t>(j)];
-      if (qj == 0.0) continue;
+    for (int j = kFirstOfDegree[q_degree]; j < kMonomials; ++j) {
       const int k = kProduct.index[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
       EPITRACK_ASSERT(k >= 0);  // products stay within degree 3 by construction
-      r[static_cast<std::size_t>(k)] += pi * qj;
+      r[static_cast<std::size_t>(k)] += pi * q[static_cast<std::size_t>(j)];
     }
   }
   return r;
@@ -82,15 +83,15 @@ Poly add(const Poly& p, const Poly& q, double sq = 1.0) {
 
 using PolyMatrix = std::array<std::array<Poly, 3>, 3>;
 
-PolyMatrix multiply(const PolyMatrix& A, const PolyMatrix& B) {
+PolyMatrix multiply(const PolyMatrix& A, int a_degree, const PolyMatrix& B, int b_degree) {
   PolyMatrix C{};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
       for (int k = 0; k < 3; ++k)
         C[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] =
             add(C[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)],
-                multiply(A[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)],
-                         B[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)]));
+                multiply(A[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)], a_degree,
+                         B[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)], b_degree));
   return C;
 }
 
@@ -142,8 +143,8 @@ int essentialFivePoint(const Eigen::Vector2d n1[5], const Eigen::Vector2d n2[5],
     for (int c = 0; c < 3; ++c)
       Et[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)] =
           Ep[static_cast<std::size_t>(c)][static_cast<std::size_t>(r)];
-  const PolyMatrix EEt = multiply(Ep, Et);
-  const PolyMatrix EEtE = multiply(EEt, Ep);
+  const PolyMatrix EEt = multiply(Ep, 1, Et, 1);
+  const PolyMatrix EEtE = multiply(EEt, 2, Ep, 1);
   const Poly trace = add(add(EEt[0][0], EEt[1][1]), EEt[2][2]);
   Eigen::Matrix<double, 10, 20> M;
   // 2 E E^T E - tr(E E^T) E = 0 (nine equations).
@@ -152,17 +153,19 @@ int essentialFivePoint(const Eigen::Vector2d n1[5], const Eigen::Vector2d n2[5],
       const Poly eq =
           add(add(EEtE[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)],
                   EEtE[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)]),
-              multiply(trace, Ep[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)]), -1.0);
+              multiply(trace, 2, Ep[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)], 1),
+              -1.0);
       for (int m = 0; m < kMonomials; ++m) M(3 * r + c, m) = eq[static_cast<std::size_t>(m)];
     }
   }
   // det(E) = 0, expanded along the first row.
   const auto& e = Ep;
-  const Poly minor0 = add(multiply(e[1][1], e[2][2]), multiply(e[1][2], e[2][1]), -1.0);
-  const Poly minor1 = add(multiply(e[1][0], e[2][2]), multiply(e[1][2], e[2][0]), -1.0);
-  const Poly minor2 = add(multiply(e[1][0], e[2][1]), multiply(e[1][1], e[2][0]), -1.0);
-  const Poly det = add(add(multiply(e[0][0], minor0), multiply(e[0][1], minor1), -1.0),
-                       multiply(e[0][2], minor2));
+  const auto mul11 = [](const Poly& a, const Poly& b) { return multiply(a, 1, b, 1); };
+  const Poly minor0 = add(mul11(e[1][1], e[2][2]), mul11(e[1][2], e[2][1]), -1.0);
+  const Poly minor1 = add(mul11(e[1][0], e[2][2]), mul11(e[1][2], e[2][0]), -1.0);
+  const Poly minor2 = add(mul11(e[1][0], e[2][1]), mul11(e[1][1], e[2][0]), -1.0);
+  const Poly det = add(add(multiply(e[0][0], 1, minor0, 2), multiply(e[0][1], 1, minor1, 2), -1.0),
+                       multiply(e[0][2], 1, minor2, 2));
   for (int m = 0; m < kMonomials; ++m) M(9, m) = det[static_cast<std::size_t>(m)];
   // Gauss-Jordan on the cubic monomials: cubic_k = -G(k, :) * basis.
   const Eigen::Matrix<double, 10, 10> C = M.leftCols<10>();

@@ -14,10 +14,24 @@ struct BinaryDescriptor {
   std::array<uint64_t, 4> bits{};
 };
 
+/// Set bits of a 64-bit word. x86-64 without -mpopcnt (the portable default build) would call
+/// libgcc's table-driven __popcountdi2 for std::popcount: the SWAR sum (Hacker's Delight 5-1)
+/// inline is faster; elsewhere (aarch64: CNT) the builtin is one instruction.
+[[nodiscard]] inline int popcount64(uint64_t x) {
+#if defined(__x86_64__) && !defined(__POPCNT__)
+  x = x - ((x >> 1U) & 0x5555555555555555ULL);
+  x = (x & 0x3333333333333333ULL) + ((x >> 2U) & 0x3333333333333333ULL);
+  x = (x + (x >> 4U)) & 0x0f0f0f0f0f0f0f0fULL;
+  return static_cast<int>((x * 0x0101010101010101ULL) >> 56U);
+#else
+  return std::popcount(x);
+#endif
+}
+
 /// Number of differing bits (0..256).
 [[nodiscard]] inline int hammingDistance(const BinaryDescriptor& a, const BinaryDescriptor& b) {
-  return std::popcount(a.bits[0] ^ b.bits[0]) + std::popcount(a.bits[1] ^ b.bits[1]) +
-         std::popcount(a.bits[2] ^ b.bits[2]) + std::popcount(a.bits[3] ^ b.bits[3]);
+  return popcount64(a.bits[0] ^ b.bits[0]) + popcount64(a.bits[1] ^ b.bits[1]) +
+         popcount64(a.bits[2] ^ b.bits[2]) + popcount64(a.bits[3] ^ b.bits[3]);
 }
 
 /// Summed-area table of an 8-bit image: `out` is (width + 1) x (height + 1), out(x, y) the sum of

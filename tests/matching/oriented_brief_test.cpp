@@ -165,8 +165,8 @@ TEST_CASE("The scale pyramid matches across a moderate scale change", "[matching
 
 TEST_CASE("Oriented BRIEF is a pure function of the pattern seed and the pixels",
           "[matching][descriptor]") {
-  // Integer arithmetic only: the same bits on every platform. The checksum pins them (the
-  // cross-build's qemu run compares).
+  // Integer arithmetic only (the detector's float response aside, which is exact on integer
+  // sums): the same bits on every platform. The checksum pins them.
   const Image<uint8_t>& img = texturedFrame();
   FeatureExtractorOptions o;
   o.max_features = 300;

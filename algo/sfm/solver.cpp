@@ -847,7 +847,8 @@ bool Solver::registerByRelativePose(int f, int reference) {
   eo.focal_px = f_;
   EssentialRansacResult e;
   if (er.estimate(n_ref, n_f, eo, e) != EssentialRansac::Status::kOk ||
-      e.inliers < options_.keyframe_min_pair_inliers)
+      e.inliers < options_.keyframe_min_pair_inliers ||
+      2 * e.inliers < static_cast<int>(n_ref.size()))
     return false;
   const std::vector<uint8_t> mask(e.mask.begin(), e.mask.end());
   RelativePoseResult rp;
@@ -924,7 +925,9 @@ bool Solver::registerByRelativePose(int f, int reference) {
   }
   const PoseCw refined = pose;
   const int n = inliersFor(refined, nullptr);
-  if (n < options_.keyframe_min_scale_points) return false;
+  if (n < options_.keyframe_min_scale_points ||
+      n < options_.keyframe_min_inlier_ratio * static_cast<double>(X.size()))
+    return false;
   auto& fr = frames_[static_cast<std::size_t>(f)];
   fr.solved = true;
   fr.pose = refined;

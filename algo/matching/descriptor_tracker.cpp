@@ -35,6 +35,7 @@ DescriptorTracker::DescriptorTracker(const DescriptorTrackerOptions& options, in
       ransac_(std::max(8, 2 * nodesPerFrame(options))),
       essential_(std::max(8, 2 * nodesPerFrame(options))),
       lk_(options.lk, 1) {
+  pyramids_.resize(static_cast<std::size_t>(std::max(1, options.window)) + 1);
   for (Pyramid& p : pyramids_) p.configure(width, height, options.lk.levels + 1);
   if (knownIntrinsics()) {
     Eigen::Matrix3d K;
@@ -47,7 +48,8 @@ DescriptorTracker::DescriptorTracker(const DescriptorTrackerOptions& options, in
   options_.max_propagated = std::max(0, options_.max_propagated);
   const std::size_t nodes_per_frame = n + static_cast<std::size_t>(options_.max_propagated);
   slots_.resize(static_cast<std::size_t>(options_.window) + 1);
-  seeds_.resize(2 * nodes_per_frame);
+  seed_sets_.resize(static_cast<std::size_t>(options_.window) + 1);
+  for (SeedSet& ss : seed_sets_) ss.matches.resize(2 * nodes_per_frame);
   seed_dist_.resize(2 * nodes_per_frame);
   disp_x_.resize(2 * nodes_per_frame);
   disp_y_.resize(2 * nodes_per_frame);
@@ -377,11 +379,12 @@ void DescriptorTracker::matchPair(const Slot& older, const Slot& current) {
     kept = accepted;
   }
   pm.inliers = kept;
-  if (older.frame + 1 == current.frame) {  // the seeds of the LK propagation
-    seed_count_ = std::min(kept, static_cast<int>(seeds_.size()));
-    std::copy_n(matches_.begin(), seed_count_, seeds_.begin());
-    seeds_oriented_ = oriented;
-    seed_F_ = F;
+  {  // the seeds of the LK propagation
+    SeedSet& ss = seed_sets_[static_cast<std::size_t>(current.frame - older.frame)];
+    ss.count = std::min(kept, static_cast<int>(ss.matches.size()));
+    std::copy_n(matches_.begin(), ss.count, ss.matches.begin());
+    ss.oriented = oriented;
+    ss.F = F;
   }
   // Best matches first: they win when two matches would put two features of a frame in a track.
   std::iota(order_.begin(), order_.begin() + kept, 0);
@@ -420,14 +423,19 @@ DescriptorTracker::Status DescriptorTracker::addFrame(ImageView<const uint8_t> i
   }
   frame_offset_.push_back(base + found);
   frame_stamp_.push_back(0);
-  if (options_.lk_propagation) pyramids_[static_cast<std::size_t>(f % 2)].build(image);
-  seed_count_ = 0;
+  if (options_.lk_propagation)
+    pyramids_[static_cast<std::size_t>(f) % pyramids_.size()].build(image);
+  for (SeedSet& ss : seed_sets_) ss.count = 0;
   for (int k = 1; k <= options_.window && f - k >= 0; ++k) {
     const Slot& older = slots_[static_cast<std::size_t>(f - k) % slots_.size()];
     matchPair(older, slot);
   }
-  if (options_.lk_propagation && f > 0 && seed_count_ >= std::max(1, options_.lk_neighbours))
-    propagate(slots_[static_cast<std::size_t>(f - 1) % slots_.size()], slot);
+  const int sources = std::min(options_.window, std::max(1, options_.lk_propagation_frames));
+  for (int k = 1; options_.lk_propagation && k <= sources && f - k >= 0; ++k) {
+    const SeedSet& ss = seed_sets_[static_cast<std::size_t>(k)];
+    if (ss.count >= std::max(1, options_.lk_neighbours))
+      propagate(slots_[static_cast<std::size_t>(f - k) % slots_.size()], slot, ss);
+  }
   return Status::kOk;
 }
 
@@ -440,16 +448,17 @@ bool DescriptorTracker::setHasFrame(int node, int frame) const {
   return false;
 }
 
-void DescriptorTracker::propagate(Slot& previous, Slot& current) {
-  const Pyramid& from = pyramids_[static_cast<std::size_t>(previous.frame % 2)];
-  const Pyramid& to = pyramids_[static_cast<std::size_t>(current.frame % 2)];
+void DescriptorTracker::propagate(Slot& previous, Slot& current, const SeedSet& seeds) {
+  const Pyramid& from = pyramids_[static_cast<std::size_t>(previous.frame) % pyramids_.size()];
+  const Pyramid& to = pyramids_[static_cast<std::size_t>(current.frame) % pyramids_.size()];
+  const int seed_count = seeds.count;
   const int base_prev = frame_offset_[static_cast<std::size_t>(previous.frame)];
-  const int k = std::min(options_.lk_neighbours, seed_count_);
+  const int k = std::min(options_.lk_neighbours, seed_count);
   const int detected = current.count;  // keypoints found in this frame (before any propagated)
   const int capacity = static_cast<int>(current.keypoints.size());
   const double t2 = options_.fundamental.ransac.threshold * options_.fundamental.ransac.threshold;
   const double merge2 = options_.merge_radius_px * options_.merge_radius_px;
-  const bool oriented = seeds_oriented_;
+  const bool oriented = seeds.oriented;
   const auto& desc_prev = oriented ? previous.oriented : previous.upright;
   int propagated = 0;
   for (int i = 0; i < previous.count; ++i) {
@@ -457,22 +466,23 @@ void DescriptorTracker::propagate(Slot& previous, Slot& current) {
     if (setHasFrame(node, current.frame)) continue;  // already matched into this frame
     const Keypoint& p = previous.keypoints[static_cast<std::size_t>(i)];
     // Prediction: the median displacement of the k nearest verified matches.
-    for (int s = 0; s < seed_count_; ++s) {
+    for (int s = 0; s < seed_count; ++s) {
       const Keypoint& q =
-          previous.keypoints[static_cast<std::size_t>(seeds_[static_cast<std::size_t>(s)].a)];
+          previous
+              .keypoints[static_cast<std::size_t>(seeds.matches[static_cast<std::size_t>(s)].a)];
       const float dx = q.x - p.x, dy = q.y - p.y;
       seed_dist_[static_cast<std::size_t>(s)] = dx * dx + dy * dy;
       seed_order_[static_cast<std::size_t>(s)] = s;
     }
     std::partial_sort(seed_order_.begin(), seed_order_.begin() + k,
-                      seed_order_.begin() + seed_count_, [&](int32_t u, int32_t v) {
+                      seed_order_.begin() + seed_count, [&](int32_t u, int32_t v) {
                         const float du = seed_dist_[static_cast<std::size_t>(u)];
                         const float dv = seed_dist_[static_cast<std::size_t>(v)];
                         return du < dv || (du == dv && u < v);
                       });
     for (int j = 0; j < k; ++j) {
       const DescriptorMatch& m =
-          seeds_[static_cast<std::size_t>(seed_order_[static_cast<std::size_t>(j)])];
+          seeds.matches[static_cast<std::size_t>(seed_order_[static_cast<std::size_t>(j)])];
       disp_x_[static_cast<std::size_t>(j)] = current.keypoints[static_cast<std::size_t>(m.b)].x -
                                              previous.keypoints[static_cast<std::size_t>(m.a)].x;
       disp_y_[static_cast<std::size_t>(j)] = current.keypoints[static_cast<std::size_t>(m.b)].y -
@@ -489,7 +499,7 @@ void DescriptorTracker::propagate(Slot& previous, Slot& current) {
       continue;
     const Eigen::Vector2d xa(static_cast<double>(p.x), static_cast<double>(p.y));
     const Eigen::Vector2d xb(static_cast<double>(x), static_cast<double>(y));
-    if (!(sampsonSquared(seed_F_, xa, xb) <= t2)) continue;
+    if (!(sampsonSquared(seeds.F, xa, xb) <= t2)) continue;
     BinaryDescriptor up, ori;
     int16_t bin = 0;
     if (!extractor_.describeAt(x, y, current.upright.empty() ? nullptr : &up,

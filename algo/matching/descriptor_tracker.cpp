@@ -64,8 +64,6 @@ DescriptorTracker::DescriptorTracker(const DescriptorTrackerOptions& options, in
   xb_.resize(2 * nodes_per_frame);
   na_.resize(2 * nodes_per_frame);
   nb_.resize(2 * nodes_per_frame);
-  used_a_.resize(nodes_per_frame);
-  used_b_.resize(nodes_per_frame);
   order_.resize(2 * nodes_per_frame);
   inlier_.resize(2 * nodes_per_frame);
   index_.resize(2 * nodes_per_frame);
@@ -310,74 +308,11 @@ void DescriptorTracker::matchPair(const Slot& older, const Slot& current) {
   }
   pm.verified = true;
   pm.F = F;
-  const auto& da = oriented ? older.oriented : older.upright;
-  const auto& db = oriented ? current.oriented : current.upright;
-  const std::span<const Keypoint> ka(older.keypoints.data(), static_cast<std::size_t>(older.count));
-  const std::span<const Keypoint> kb(current.keypoints.data(),
-                                     static_cast<std::size_t>(current.count));
-  // Keep the inliers (in place), then complete them along the epipolar lines.
+  // Keep the inliers (in place).
   int kept = 0;
   for (int i = 0; i < count; ++i)
     if (inlier_[static_cast<std::size_t>(i)])
       matches_[static_cast<std::size_t>(kept++)] = matches_[static_cast<std::size_t>(i)];
-  if (options_.local_matching && kept >= std::max(1, options_.local.neighbours)) {
-    std::fill_n(used_a_.begin(), older.count, uint8_t{0});
-    std::fill_n(used_b_.begin(), current.count, uint8_t{0});
-    for (int i = 0; i < kept; ++i) {
-      used_a_[static_cast<std::size_t>(matches_[static_cast<std::size_t>(i)].a)] = 1;
-      used_b_[static_cast<std::size_t>(matches_[static_cast<std::size_t>(i)].b)] = 1;
-    }
-    int total = kept;
-    matcher_.matchLocal(
-        ka, {da.data(), static_cast<std::size_t>(older.count)}, kb,
-        {db.data(), static_cast<std::size_t>(current.count)},
-        std::span<const DescriptorMatch>(matches_.data(), static_cast<std::size_t>(kept)),
-        std::span<const uint8_t>(used_a_.data(), static_cast<std::size_t>(older.count)),
-        std::span<const uint8_t>(used_b_.data(), static_cast<std::size_t>(current.count)), F,
-        options_.local, matches_, total);
-    const double t2 = options_.fundamental.ransac.threshold * options_.fundamental.ransac.threshold;
-    int accepted = kept;
-    for (int i = kept; i < total; ++i) {
-      const DescriptorMatch& m = matches_[static_cast<std::size_t>(i)];
-      const Keypoint& p = ka[static_cast<std::size_t>(m.a)];
-      const Keypoint& q = kb[static_cast<std::size_t>(m.b)];
-      if (sampsonSquared(F, Eigen::Vector2d(static_cast<double>(p.x), static_cast<double>(p.y)),
-                         Eigen::Vector2d(static_cast<double>(q.x), static_cast<double>(q.y))) > t2)
-        continue;
-      matches_[static_cast<std::size_t>(accepted++)] = m;
-    }
-    pm.guided += accepted - kept;
-    kept = accepted;
-  }
-  if (options_.guided_matching) {
-    std::fill_n(used_a_.begin(), older.count, uint8_t{0});
-    std::fill_n(used_b_.begin(), current.count, uint8_t{0});
-    for (int i = 0; i < kept; ++i) {
-      used_a_[static_cast<std::size_t>(matches_[static_cast<std::size_t>(i)].a)] = 1;
-      used_b_[static_cast<std::size_t>(matches_[static_cast<std::size_t>(i)].b)] = 1;
-    }
-    int total = kept;
-    matcher_.matchGuided(
-        ka, {da.data(), static_cast<std::size_t>(older.count)}, kb,
-        {db.data(), static_cast<std::size_t>(current.count)},
-        std::span<const uint8_t>(used_a_.data(), static_cast<std::size_t>(older.count)),
-        std::span<const uint8_t>(used_b_.data(), static_cast<std::size_t>(current.count)), F,
-        options_.guided, matches_, total);
-    // The one-sided line distance admitted them; the Sampson distance must agree.
-    const double t2 = options_.fundamental.ransac.threshold * options_.fundamental.ransac.threshold;
-    int accepted = kept;
-    for (int i = kept; i < total; ++i) {
-      const DescriptorMatch& m = matches_[static_cast<std::size_t>(i)];
-      const Keypoint& p = ka[static_cast<std::size_t>(m.a)];
-      const Keypoint& q = kb[static_cast<std::size_t>(m.b)];
-      if (sampsonSquared(F, Eigen::Vector2d(static_cast<double>(p.x), static_cast<double>(p.y)),
-                         Eigen::Vector2d(static_cast<double>(q.x), static_cast<double>(q.y))) > t2)
-        continue;
-      matches_[static_cast<std::size_t>(accepted++)] = m;
-    }
-    pm.guided += accepted - kept;
-    kept = accepted;
-  }
   pm.inliers = kept;
   {  // the seeds of the LK propagation
     SeedSet& ss = seed_sets_[static_cast<std::size_t>(current.frame - older.frame)];

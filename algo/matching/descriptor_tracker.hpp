@@ -29,12 +29,6 @@ struct DescriptorTrackerOptions {
   FeatureExtractorOptions features;
   DescriptorOrientation orientation = DescriptorOrientation::kBoth;
   DescriptorMatchOptions match;
-  GuidedMatchOptions guided;
-  bool guided_matching = false;  ///< after F: epipolar-guided matching of the features left over
-  /// After F: matching of the features left over by local motion (DescriptorMatcher::matchLocal,
-  /// the verified matches as seeds).
-  bool local_matching = false;
-  LocalMatchOptions local;
   int window = 2;  ///< each frame is matched against this many previous frames
   /// Geometric verification: F-RANSAC on the putative matches of a frame pair (Sampson distance
   /// threshold in pixels); a pair with fewer inliers than min_inliers, or an inlier fraction below
@@ -58,7 +52,7 @@ struct DescriptorTrackerOptions {
   /// that did not match into this one (a corner the detector missed here, weak texture, a
   /// repeated pattern) is aligned by pyramidal Lucas-Kanade (its patch in the previous frame as
   /// template, affine at the base level) from the position its verified neighbours predict (the
-  /// median displacement of the nearest verified matches, as DescriptorMatcher::matchLocal),
+  /// median displacement of the nearest verified matches),
   /// which puts LK inside its convergence range however far the key frames are apart. A result
   /// must converge below lk_max_residual, lie within the RANSAC threshold of its epipolar line
   /// and keep its descriptor (Hamming distance within lk_max_distance); it joins a keypoint
@@ -83,7 +77,6 @@ struct FramePairMatches {
   int frame_b = 0;
   int putative = 0;    ///< after the ratio test and the mutual check
   int inliers = 0;     ///< consistent with F
-  int guided = 0;      ///< added by guided or local matching (included in inliers)
   int propagated = 0;  ///< LK propagation into frame_b (frame_a = frame_b - 1 only)
   int merged = 0;      ///< inliers that joined two tracks (not already one, no conflict)
   bool verified = false;
@@ -94,7 +87,7 @@ struct FramePairMatches {
 /// Tracks from descriptor matching, for key frames that LK cannot bridge: each new frame's
 /// features (FeatureExtractor: multi-scale Shi-Tomasi + oriented BRIEF) are matched against the
 /// previous `window` frames (nearest first: DescriptorMatcher, ratio test, mutual check), each
-/// pair verified by F-RANSAC (and completed by epipolar-guided matching), and the verified
+/// pair verified by E- or F-RANSAC, LK propagating what the matching missed, and the verified
 /// matches chained into tracks by union-find over (frame, feature), so a point seen in frames 3,
 /// 4 and 6 is one track. A merge that would put two features of one frame into one track is
 /// refused (the matches are taken best first, nearest frames first).
@@ -167,7 +160,6 @@ class DescriptorTracker {
   std::vector<DescriptorMatch> matches_;
   std::vector<Eigen::Vector2d> xa_, xb_;
   mutable std::vector<Eigen::Vector2d> na_, nb_;
-  std::vector<uint8_t> used_a_, used_b_;
   std::vector<int> order_;
   std::vector<uint8_t> inlier_;
   std::vector<int> index_;

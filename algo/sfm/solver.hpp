@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,24 @@ struct SolverOptions {
   double min_outlier_px = 0.1;  ///< the robust cut never goes below this (pixels)
   int max_track_views = 12;     ///< views used to triangulate a new track
   uint64_t seed = 1;
+  /// Key frames, not video (tracks from descriptor matching, a few views each): the initial pair
+  /// is searched over the whole clip (every frame a candidate, its partners up to
+  /// `keyframe_pair_gap` frames on), and frames are registered in next-best-view order (the
+  /// unsolved frame that sees the most map points first, Schoenberger & Frahm 2016 §4.2, "next
+  /// best view"), each one a keyframe, its new tracks triangulated from every solved view at
+  /// once; a frame that fails is tried again when the map it sees has grown.
+  bool keyframe_collection = false;
+  int keyframe_pair_gap = 4;
+  int keyframe_min_inliers = 12;            ///< PnP inliers a key frame needs ...
+  double keyframe_min_inlier_ratio = 0.25;  ///< ... and this fraction of the map points it sees
+  /// A key frame that sees too few map points for PnP is registered from its relative pose to
+  /// the solved frame it shares most tracks with (five-point E-RANSAC, at least
+  /// keyframe_min_pair_inliers): rotation and direction of travel from E, the distance from the
+  /// map points it sees (at least keyframe_min_scale_points agreeing), then refined on them.
+  bool keyframe_relative_pose = true;
+  int keyframe_min_pair_inliers = 30;
+  int keyframe_min_scale_points = 5;
+  int keyframe_global_every = 5;  ///< a global adjustment after every this many registrations
 };
 
 /// One frame of the solve.
@@ -145,6 +164,10 @@ class Solver {
   bool tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<int>& tracks,
                std::vector<Eigen::Vector3d>& X) const;
   bool registerFrame(int f);
+  bool registerBestViews();
+  bool registerKeyframe(int f);
+  bool registerByRelativePose(int f, int reference);
+  void initialCandidatesAll(const std::function<void(int, int)>& consider) const;
   bool shouldBeKeyframe(int f) const;
   void addKeyframe(int f);
   int triangulateNewTracks(int f);

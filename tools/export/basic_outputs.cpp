@@ -144,6 +144,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("focal_source", rec.focal_source);
   j.field("focal_observable", rec.focal_observable);
   j.field("motion", rec.motion);
+  if (!rec.matcher.empty()) j.field("matcher", rec.matcher);
   j.field("mean_reproj_px", mean_px);
   j.field("median_reproj_px", median_px);
   j.field("points", finite_points);

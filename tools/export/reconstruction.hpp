@@ -94,6 +94,7 @@ struct Reconstruction {
   std::string focal_source = "given";  ///< "given", "self-calibrated" or "fallback"
   bool focal_observable = true;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
+  std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   std::string status = "ok";       ///< "ok" or the reason the solve failed
   std::string message;             ///< optional human sentence about the status
   /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",

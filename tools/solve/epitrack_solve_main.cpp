@@ -69,6 +69,18 @@ int main(int argc, char** argv) {
   cl.option("object-at", "X,Y,Z", "where the object stands in the scene frame (default 0,0,0)",
             [&](const std::string& v, std::string& e) { return parseVector(v, o.object_at, e); });
   cl.real("object-scale", "S", "object size factor (default 1)", &o.object_scale, 1e-6, 1e6);
+  std::string matcher = "auto";
+  cl.choice("matcher", {"lk", "descriptors", "auto"},
+            "2D tracks: lk = pyramidal Lucas-Kanade frame to frame (video); descriptors = "
+            "oriented BRIEF matched against the previous frames, verified, chained (key frames, "
+            "photo sets); auto (default) = LK unless fewer than 35 % of its tracks survive from "
+            "frame to frame over the first 5 frames",
+            &matcher);
+  cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
+             &o.matching.features.max_features, 50, 100000);
+  cl.integer("match-window", "N",
+             "descriptor matcher: previous frames each frame is matched against (default 2)",
+             &o.matching.window, 1, 50);
   cl.integer("features", "N", "2D features tracked (default 300)", &o.tracker.max_features, 8,
              100000);
   cl.integer("window", "PX", "LK window side, odd (default 21)", &o.tracker.window, 3, 99);
@@ -96,6 +108,7 @@ int main(int argc, char** argv) {
   if (!epitrack::io::parseOriginOption(o.origin_text, o.scene, error))
     return cl.usageError("--origin: " + error);
   o.distortion = distortion == "k1k2" ? 2 : distortion == "k1" ? 1 : 0;
+  epitrack::tools::parseMatcher(matcher, o.matcher);
   o.solver.seed = static_cast<uint64_t>(seed);
   if (quiet) o.progress = epitrack::io::ProgressReporter::Mode::kQuiet;
   epitrack::tools::installInterruptHandlers();

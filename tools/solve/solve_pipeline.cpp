@@ -59,13 +59,6 @@ class StageClock {
 
 void fail(const char* what) { std::fprintf(stderr, "epitrack-solve: %s\n", what); }
 
-// Gray value of the frame at a sub-pixel position (nearest pixel), for the point colours.
-uint8_t grayAt(ImageView<const uint8_t> img, double x, double y) {
-  const int ix = std::clamp(static_cast<int>(std::lround(x)), 0, img.width - 1);
-  const int iy = std::clamp(static_cast<int>(std::lround(y)), 0, img.height - 1);
-  return img(ix, iy);
-}
-
 // Every name epitrack-solve writes in its output directory, besides augmented/NNNNNN.jpg.
 std::vector<std::string> solveOutputNames() {
   std::vector<std::string> names = {"summary.json"};
@@ -219,10 +212,11 @@ int runSolve(const SolveCommandOptions& o) {
   // --- 2D tracking of the whole clip ---------------------------------------------------------
   const long expected = static_cast<long>(source->info().frame_count);
   progress.begin("tracking", expected);
-  std::unique_ptr<FeatureTracker> tracker;
+  std::unique_ptr<ClipTracker> tracker;
   TrackTable tracks;
   std::unordered_map<int64_t, uint8_t> track_gray;
   std::vector<int> features_per_frame;
+  bool decision_reported = false;
   std::vector<double> timestamps;
   const bool draw_frames = o.render != "none" || o.overlay == "tracks";
   const bool keep_frames = draw_frames && o.input == "-";  // stdin cannot be re-read
@@ -268,17 +262,22 @@ int runSolve(const SolveCommandOptions& o) {
         fail(msg);
         return 1;
       }
-      tracker = std::make_unique<FeatureTracker>(o.tracker, width, height);
-      tracks.reserve(expected > 0 ? static_cast<int>(expected) : 1024,
-                     static_cast<std::size_t>(std::max<long>(expected, 1024)) *
-                         static_cast<std::size_t>(o.tracker.max_features));
+      DescriptorTrackerOptions matching = o.matching;
+      if (so.focal_px > 0.0) {  // known intrinsics: five-point verification of the pairs
+        matching.focal_px = so.focal_px;
+        matching.cx = so.has_principal_point ? so.cx : (width - 1) * 0.5;
+        matching.cy = so.has_principal_point ? so.cy : (height - 1) * 0.5;
+        matching.aspect = so.aspect;
+      }
+      tracker = std::make_unique<ClipTracker>(o.matcher, o.tracker, matching, width, height,
+                                              expected > 0 ? static_cast<int>(expected) : 1024);
     }
     ImageView<const uint8_t> mask;
     if (!masks.maskFor(frames, width, height, mask, error)) {
       fail(error.c_str());
       return 2;
     }
-    if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
+    if (tracker->track(frame.luma, mask) != ClipTracker::Status::kOk) {
       input_error = "frame " + std::to_string(frame.index) + " is " +
                     std::to_string(frame.luma.width) + "x" + std::to_string(frame.luma.height) +
                     ", the clip started at " + std::to_string(width) + "x" + std::to_string(height);
@@ -286,12 +285,10 @@ int runSolve(const SolveCommandOptions& o) {
                        " frames before it");
       break;
     }
-    const auto live = tracker->features();
-    for (const auto& f : live) {
-      tracks.add(frames, f.id, f.x, f.y);
-      track_gray.try_emplace(f.id, grayAt(frame.luma, f.x, f.y));
+    if (!decision_reported && !tracker->decision().empty()) {
+      progress.message("matcher: " + tracker->decision());
+      decision_reported = true;
     }
-    features_per_frame.push_back(static_cast<int>(live.size()));
     timestamps.push_back(frame.timestamp_s);
     if (keep_frames) {
       kept.emplace_back(width, height);
@@ -318,8 +315,11 @@ int runSolve(const SolveCommandOptions& o) {
     fail("the input holds no readable frame");
     return 1;
   }
-  tracks.setFrameCount(frames);
-  tracks.finalize();
+  tracker->finish(tracks, features_per_frame, track_gray);
+  if (!decision_reported) progress.message("matcher: " + tracker->decision());
+  rec.matcher = matcherName(tracker->chosen());
+  // Key frames (descriptor tracks): every frame a keyframe, next-best-view registration.
+  if (tracker->chosen() == Matcher::kDescriptors) so.keyframe_collection = true;
   clock.lap("tracking");
 
   // --- 3D solve ---------------------------------------------------------------------------------

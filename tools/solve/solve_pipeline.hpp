@@ -6,9 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "algo/matching/descriptor_tracker.hpp"
 #include "algo/sfm/scene_frame.hpp"
 #include "algo/sfm/solver.hpp"
 #include "algo/tracking/feature_tracker.hpp"
+#include "tools/common/clip_tracker.hpp"
 #include "tools/export/progress.hpp"
 #include "tools/export/reconstruction.hpp"
 
@@ -28,6 +30,8 @@ struct SolveCommandOptions {
   Eigen::Vector3d object_at = Eigen::Vector3d::Zero();
   double object_scale = 1.0;
   FeatureTrackerOptions tracker;
+  Matcher matcher = Matcher::kAuto;   ///< --matcher: LK, descriptor matching, or chosen (auto)
+  DescriptorTrackerOptions matching;  ///< the descriptor matcher (key frames)
   SolverOptions solver;
   io::ProgressReporter::Mode progress = io::ProgressReporter::Mode::kAuto;
   double max_memory_mib = 4096.0;  ///< refuse inputs whose buffers would need more (--max-memory)

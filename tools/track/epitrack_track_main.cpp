@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <unistd.h>
@@ -17,12 +18,13 @@
 #include "hal/io/file_util.hpp"
 #include "hal/io/image_codec.hpp"
 #include "hal/io/tracks_csv.hpp"
+#include "tools/common/clip_tracker.hpp"
 #include "tools/common/command_line.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
 
 namespace hal = epitrack::hal;
-using epitrack::FeatureTracker;
+using epitrack::DescriptorTrackerOptions;
 using epitrack::FeatureTrackerOptions;
 using epitrack::Image;
 using epitrack::tools::CommandLine;
@@ -50,6 +52,19 @@ int main(int argc, char** argv) {
   cl.positional("INPUT", "frames to track", &input);
   cl.text("out", "FILE", "tracks.csv to write", &out);
   cl.require("out");
+  std::string matcher_text = "auto";
+  DescriptorTrackerOptions matching;
+  cl.choice("matcher", {"lk", "descriptors", "auto"},
+            "lk = pyramidal Lucas-Kanade frame to frame (video); descriptors = oriented BRIEF "
+            "matched against the previous frames, verified, chained (key frames); auto (default) "
+            "= LK unless fewer than 35 % of its tracks survive from frame to frame over the "
+            "first 5 frames",
+            &matcher_text);
+  cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
+             &matching.features.max_features, 50, 100000);
+  cl.integer("match-window", "N",
+             "descriptor matcher: previous frames each frame is matched against (default 2)",
+             &matching.window, 1, 50);
   cl.integer("features", "N", "features to keep (default 300)", &o.max_features, 1, 100000);
   cl.integer("window", "PX", "LK window side, odd (default 21)", &o.window, 3, 99);
   cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.levels, 0, 7);
@@ -112,6 +127,8 @@ int main(int argc, char** argv) {
   if (occlusion_aware) o.occlusionAware();
   o.kalman_gate = !no_kalman;
   o.affine = !translation_only;
+  epitrack::tools::Matcher matcher = epitrack::tools::Matcher::kAuto;
+  epitrack::tools::parseMatcher(matcher_text, matcher);
 
   std::string error;
   auto source = hal::openFrameSource(input, {}, error);
@@ -135,10 +152,10 @@ int main(int argc, char** argv) {
     }
   }
   epitrack::tools::installInterruptHandlers();
-  std::unique_ptr<FeatureTracker> tracker;
-  std::vector<hal::TrackRow> rows;
-  std::map<int32_t, int> lengths;
-  int frames = 0;
+  std::unique_ptr<epitrack::tools::ClipTracker> tracker;
+  std::vector<int64_t> frame_index;  // the input's index of each tracked frame
+  bool decision_reported = false;
+  int frames = 0, width = 0, height = 0;
   double ms_total = 0.0;
   hal::Frame frame;
   // A stop signal is looked at between frames; the rows of the frames tracked so far are then
@@ -157,7 +174,11 @@ int main(int argc, char** argv) {
       return 1;
     }
     if (!tracker) {
-      tracker = std::make_unique<FeatureTracker>(o, frame.luma.width, frame.luma.height);
+      tracker = std::make_unique<epitrack::tools::ClipTracker>(
+          matcher, o, matching, frame.luma.width, frame.luma.height,
+          static_cast<int>(std::max<int64_t>(1, source->info().frame_count)));
+      width = frame.luma.width;
+      height = frame.luma.height;
     }
     epitrack::ImageView<const uint8_t> mask;
     if (!masks.maskFor(frames, frame.luma.width, frame.luma.height, mask, error)) {
@@ -165,20 +186,21 @@ int main(int argc, char** argv) {
       return 2;  // the --mask named on the command line does not fit the frames
     }
     const auto t0 = std::chrono::steady_clock::now();
-    if (tracker->track(frame.luma, mask) != FeatureTracker::Status::kOk) {
+    if (tracker->track(frame.luma, mask) != epitrack::tools::ClipTracker::Status::kOk) {
       std::fprintf(stderr, "epitrack-track: frame %lld is %dx%d, the first was %dx%d\n",
-                   static_cast<long long>(frame.index), frame.luma.width, frame.luma.height,
-                   tracker->pyramid().width(), tracker->pyramid().height());
+                   static_cast<long long>(frame.index), frame.luma.width, frame.luma.height, width,
+                   height);
       return 1;
     }
     ms_total +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    for (const auto& f : tracker->features()) {
-      rows.push_back(hal::TrackRow{frame.index, f.id, f.x, f.y});
-      ++lengths[f.id];
+    frame_index.push_back(frame.index);
+    if (!quiet && !decision_reported && !tracker->decision().empty()) {
+      std::fprintf(stderr, "epitrack-track: matcher: %s\n", tracker->decision().c_str());
+      decision_reported = true;
     }
-    if (frame_stats) {
-      const epitrack::FrameStats& fs = tracker->lastStats();
+    if (frame_stats && tracker->lkTracker() != nullptr) {
+      const epitrack::FrameStats& fs = tracker->lkTracker()->lastStats();
       std::fprintf(
           stderr,
           "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
@@ -191,14 +213,32 @@ int main(int argc, char** argv) {
     }
     ++frames;
     if (!quiet && frames % 50 == 0) {
-      std::fprintf(stderr, "epitrack-track: frame %d, %zu live tracks\n", frames,
-                   tracker->features().size());
+      std::fprintf(stderr, "epitrack-track: frame %d, %d live features\n", frames,
+                   tracker->liveFeatures());
     }
   }
   const bool interrupted = epitrack::tools::interruptRequested();
   if (frames == 0 && !interrupted) {
     std::fprintf(stderr, "epitrack-track: %s: no frames\n", input.c_str());
     return 1;
+  }
+  // The tracks of the clip (the descriptor matcher knows them only now), rows in frame order.
+  std::vector<hal::TrackRow> rows;
+  std::map<int64_t, int> lengths;
+  if (tracker) {
+    epitrack::TrackTable table;
+    std::vector<int> features_per_frame;
+    std::unordered_map<int64_t, uint8_t> first_gray;
+    tracker->finish(table, features_per_frame, first_gray);
+    if (!quiet && !decision_reported)
+      std::fprintf(stderr, "epitrack-track: matcher: %s\n", tracker->decision().c_str());
+    rows.reserve(table.observations().size());
+    for (const auto& ob : table.observations()) {
+      const int64_t id = table.trackId(ob.track);
+      rows.push_back(hal::TrackRow{frame_index[static_cast<std::size_t>(ob.frame)],
+                                   static_cast<int32_t>(id), ob.x, ob.y});
+      ++lengths[id];
+    }
   }
   if (!hal::writeTracksCsv(out, rows, error)) {
     std::fprintf(stderr, "epitrack-track: %s\n", error.c_str());

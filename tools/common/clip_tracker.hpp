@@ -1,0 +1,105 @@
+#pragma once
+
+// The 2D tracks of a whole clip for epitrack-solve and epitrack-track (`--matcher`): pyramidal LK
+// (FeatureTracker, video), descriptor matching (DescriptorTracker, key frames), or the one the
+// first frames call for (auto).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "algo/image/image.hpp"
+#include "algo/matching/descriptor_tracker.hpp"
+#include "algo/sfm/track_table.hpp"
+#include "algo/tracking/feature_tracker.hpp"
+
+namespace epitrack::tools {
+
+enum class Matcher { kLk, kDescriptors, kAuto };
+
+/// "lk", "descriptors", "auto".
+const char* matcherName(Matcher m);
+bool parseMatcher(const std::string& text, Matcher& m);
+
+/// How `auto` decides, from LK run over the first `probe_frames` frames: the survival of a frame
+/// pair is the fraction of the tracks live in the first frame that are still live in the second;
+/// descriptors when the median survival over the probe's pairs is below `min_survival`. Video
+/// keeps 60-100 % of its tracks from frame to frame (KITTI at 10 Hz and 1-2 m per frame: 55-65 %;
+/// the rendered clips: 95-100 %); key frames that LK cannot bridge keep almost none (TUM cabinet
+/// key frames: 8-18 %).
+struct MatcherProbeOptions {
+  int probe_frames = 5;
+  double min_survival = 0.35;
+};
+
+/// Median frame-to-frame survival (see MatcherProbeOptions) of the tracks in `table` over its
+/// frames [0, frames); 1 when there is no pair.
+double trackSurvival(const TrackTable& table, int frames);
+
+/// Tracks a clip frame by frame with the chosen matcher. In auto mode LK runs from the first
+/// frame and the first probe_frames frames are kept (with their masks); once they are tracked
+/// the survival decides: LK goes on unchanged (its results are those of `lk`), or the kept frames
+/// are replayed into the descriptor tracker, which takes the rest of the clip.
+class ClipTracker {
+ public:
+  enum class Status { kOk, kSizeMismatch };
+
+  ClipTracker(Matcher matcher, const FeatureTrackerOptions& lk,
+              const DescriptorTrackerOptions& descriptors, int width, int height,
+              int expected_frames, const MatcherProbeOptions& probe = {});
+  ~ClipTracker();
+  ClipTracker(const ClipTracker&) = delete;
+  ClipTracker& operator=(const ClipTracker&) = delete;
+
+  /// The next frame (frames are numbered from 0 in the order given).
+  Status track(ImageView<const uint8_t> luma, ImageView<const uint8_t> mask);
+  /// Frames lost in the input (LK's motion model skips them; descriptors need nothing).
+  void skipFrames(int n);
+  /// Features after the last frame: LK's live tracks, or the descriptor tracker's keypoints.
+  [[nodiscard]] int liveFeatures() const;
+
+  /// Ends the clip: every track into `table` (setFrameCount and finalize done), the features per
+  /// frame (LK: live tracks; descriptors: observations of tracks), and each track's gray value
+  /// at its first observation (for point colours).
+  void finish(TrackTable& table, std::vector<int>& features_per_frame,
+              std::unordered_map<int64_t, uint8_t>& first_gray);
+
+  /// kLk or kDescriptors once decided (auto: kAuto until the probe ends).
+  [[nodiscard]] Matcher chosen() const { return chosen_; }
+  /// One line on what was chosen and why ("" before the decision).
+  [[nodiscard]] const std::string& decision() const { return decision_; }
+  /// The LK tracker while it runs (its frame statistics), else nullptr.
+  [[nodiscard]] const FeatureTracker* lkTracker() const { return lk_.get(); }
+  /// The descriptor tracker when chosen (its pair statistics), else nullptr.
+  [[nodiscard]] const DescriptorTracker* descriptorTracker() const { return descriptors_.get(); }
+
+ private:
+  struct Row {
+    int frame;
+    int64_t id;
+    float x, y;
+  };
+  void trackLk(ImageView<const uint8_t> luma, ImageView<const uint8_t> mask);
+  void trackDescriptors(ImageView<const uint8_t> luma, ImageView<const uint8_t> mask);
+  void decide();
+
+  Matcher requested_;
+  Matcher chosen_;
+  FeatureTrackerOptions lk_options_;
+  DescriptorTrackerOptions descriptor_options_;
+  MatcherProbeOptions probe_;
+  int width_, height_, expected_frames_;
+  int frames_ = 0;
+  std::unique_ptr<FeatureTracker> lk_;
+  std::unique_ptr<DescriptorTracker> descriptors_;
+  std::vector<Row> rows_;               // LK observations
+  std::vector<int> lk_live_;            // LK live tracks per frame
+  std::vector<uint8_t> keypoint_gray_;  // descriptors: gray of every keypoint, frame by frame
+  std::unordered_map<int64_t, uint8_t> lk_gray_;
+  std::vector<Image<uint8_t>> kept_frames_, kept_masks_;  // auto: the probe's frames
+  std::string decision_;
+};
+
+}  // namespace epitrack::tools

@@ -76,7 +76,8 @@ TEST_CASE("TUM fr3/cabinet key frames: descriptor tracks, at least 90 % of the f
   CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 10.0);
 }
 
-TEST_CASE("templeRing views 12-30: descriptor tracks beat LK", "[matching][real]") {
+TEST_CASE("templeRing views 12-30: descriptor tracks, rotations better than LK",
+          "[matching][real]") {
   const std::string name = "middlebury_templeRing";
   if (!epitrack::test::haveSharedSequence(name)) return;
   const std::string seq = sharedDataDir() + "/" + name;
@@ -101,10 +102,12 @@ TEST_CASE("templeRing views 12-30: descriptor tracks beat LK", "[matching][real]
   REQUIRE(r.exit_code == 0);
   std::printf(
       "templeRing 12-30, descriptors: %.0f/19 solved, ATE %.4f of the path, rotation "
-      "%.2f deg mean (LK: ATE 0.0033, 1.09 deg)\n",
+      "%.2f deg mean (LK: ATE 0.0017, 0.62 deg)\n",
       jsonNumber(r.summary, "solved_frames"), jsonNumber(r.eval, "ate_rmse_rel"),
       jsonNumber(r.eval, "rot_err_deg_mean"));
   CHECK(jsonNumber(r.summary, "solved_frames") == 19);
-  CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.0031);   // 0.0028 measured; LK 0.0033
-  CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 0.8);  // 0.57 measured; LK 1.09
+  // With the solver's robust statistics (stop 15): ATE 0.00175, rotation 0.37 deg; LK 0.0017 and
+  // 0.62 deg (before them: 0.0028 / 0.57 deg against LK's 0.0033 / 1.09 deg).
+  CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.0025);
+  CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 0.5);
 }

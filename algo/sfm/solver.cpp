@@ -538,7 +538,7 @@ bool Solver::initialize() {
 // ---------------------------------------------------------------------------------------------
 // Stage 3: every frame by resection (paper §5.4), keyframes, new points, windowed adjustment.
 
-bool Solver::registerFrame(int f) {
+bool Solver::registerFrame(int f, int min_inliers, double min_inlier_ratio) {
   std::vector<Eigen::Vector3d> X;
   std::vector<Eigen::Vector2d> x;
   for (const auto& o : tracks_.frame(f)) {
@@ -547,7 +547,7 @@ bool Solver::registerFrame(int f) {
     X.push_back(points_[static_cast<std::size_t>(p)].X);
     x.push_back(normalized(o));
   }
-  if (X.size() < 12) return false;
+  if (static_cast<int>(X.size()) < min_inliers) return false;
   PnpRansac pnp(static_cast<int>(X.size()));
   PnpOptions po;
   po.focal_px = f_;
@@ -556,7 +556,8 @@ bool Solver::registerFrame(int f) {
   po.refine_options.huber_px = options_.huber_px;
   PnpResult r;
   if (pnp.estimate(X, x, po, r) != PnpRansac::Status::kOk) return false;
-  if (r.inliers < 12 || r.inliers * 2 < static_cast<int>(X.size())) return false;
+  if (r.inliers < min_inliers || r.inliers < min_inlier_ratio * static_cast<double>(X.size()))
+    return false;
   if (robust_cut_px_ > 0.0) {
     // After a global adjustment: refine on the observations within its robust cut, with its
     // Huber threshold (the RANSAC threshold and the fixed Huber loss admit biased tracks).
@@ -569,7 +570,7 @@ bool Solver::registerFrame(int f) {
         ++kept;
       }
     }
-    if (kept >= 12) {
+    if (kept >= min_inliers) {
       PoseRefineOptions ro;
       ro.focal_px = f_;
       ro.huber_px = robust_huber_px_;
@@ -954,38 +955,6 @@ void Solver::initialCandidatesAll(const std::function<void(int, int)>& consider)
   }
 }
 
-bool Solver::registerKeyframe(int f) {
-  // registerFrame with the key-frame thresholds: short descriptor tracks carry more wrong
-  // points (a wrong match consistent with its epipolar line triangulates), so a smaller inlier
-  // fraction is accepted when the count is there.
-  std::vector<Eigen::Vector3d> X;
-  std::vector<Eigen::Vector2d> x;
-  for (const auto& o : tracks_.frame(f)) {
-    const int p = point_of_track_[static_cast<std::size_t>(o.track)];
-    if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-    X.push_back(points_[static_cast<std::size_t>(p)].X);
-    x.push_back(normalized(o));
-  }
-  if (static_cast<int>(X.size()) < options_.keyframe_min_inliers) return false;
-  PnpRansac pnp(static_cast<int>(X.size()));
-  PnpOptions po;
-  po.focal_px = f_;
-  po.ransac.threshold = options_.reproj_threshold_px;
-  po.ransac.seed = options_.seed + static_cast<uint64_t>(f);
-  po.refine_options.huber_px = options_.huber_px;
-  PnpResult r;
-  if (pnp.estimate(X, x, po, r) != PnpRansac::Status::kOk) return false;
-  if (r.inliers < options_.keyframe_min_inliers ||
-      r.inliers < options_.keyframe_min_inlier_ratio * static_cast<double>(X.size()))
-    return false;
-  auto& fr = frames_[static_cast<std::size_t>(f)];
-  fr.solved = true;
-  fr.pose = r.pose;
-  fr.inliers = r.inliers;
-  fr.rms_px = r.rms_px;
-  return true;
-}
-
 bool Solver::registerByRelativePose(int f, int reference) {
   // Correspondences between the solved reference and f.
   std::vector<Eigen::Vector2d> n_ref, n_f;
@@ -1133,7 +1102,8 @@ bool Solver::registerBestViews() {
     }
     if (best >= 0) {
       tried_at[static_cast<std::size_t>(best)] = best_count;
-      const bool reg = registerKeyframe(best);
+      const bool reg =
+          registerFrame(best, options_.keyframe_min_inliers, options_.keyframe_min_inlier_ratio);
       if (reg) accept(best);
       continue;
     }

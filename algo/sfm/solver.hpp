@@ -163,9 +163,11 @@ class Solver {
   [[nodiscard]] Eigen::Vector2d normalized(const TrackObservation& o) const;
   bool tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<int>& tracks,
                std::vector<Eigen::Vector3d>& X) const;
-  bool registerFrame(int f);
+  /// PnP-RANSAC on the map (paper §5.4): at least min_inliers inliers, and this fraction of the
+  /// frame's map points (key frames accept a smaller one: short descriptor tracks carry more
+  /// wrong points).
+  bool registerFrame(int f, int min_inliers = 12, double min_inlier_ratio = 0.5);
   bool registerBestViews();
-  bool registerKeyframe(int f);
   bool registerByRelativePose(int f, int reference);
   void initialCandidatesAll(const std::function<void(int, int)>& consider) const;
   bool shouldBeKeyframe(int f) const;

@@ -170,6 +170,21 @@ const std::map<std::string, Key>& keyTable() {
     t["lk_affine"] =
         boolKey("LK with an affine template warp at the base level (else translation only)",
                 [](C& c) -> bool& { return c.tracker.affine; });
+    t["lk_occlusion_aware"] = {
+        "LK residual over the window's centre and stretch-gated template refresh, the 2D "
+        "tracker's default (true/false; the device default false: the whole-window set, whose "
+        "live accuracy is measured)",
+        [](C& c, const std::string& v, std::string& e) {
+          bool on = false;
+          if (!parseBool(v, on, e)) return false;
+          if (on) {
+            c.tracker.occlusionAware();
+          } else {
+            c.tracker.wholeWindow();
+          }
+          return true;
+        },
+        {}};
     t["lk_iterations"] = intKey("LK iterations per pyramid level", 1, 100,
                                 [](C& c) -> int& { return c.tracker.max_iterations; });
     t["redetect_fraction"] =

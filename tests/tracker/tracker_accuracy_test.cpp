@@ -35,24 +35,25 @@ TEST_CASE("Tracking the noise-free 704x576 orbit meets the accuracy targets", "[
   CHECK(a.fraction_beyond_3px < 0.01);
   CHECK(a.drift_median_100 < 0.5);
   REQUIRE(a.visible_100 > 0);
-  CHECK(static_cast<double>(a.survived_100) >= 0.75 * a.visible_100);
+  // Issue 3: at least 90 % of the features whose corner stays visible survive 100 frames (the
+  // occlusion-aware defaults: 169/180 measured; 142/180 with the whole-window set).
+  CHECK(static_cast<double>(a.survived_100) >= 0.9 * a.visible_100);
 }
 
-TEST_CASE("With the occlusion-aware options 90 % of the visible corners survive 100 frames",
+TEST_CASE("The whole-window option set (the device's) meets the accuracy targets too",
           "[tracker][orbit]") {
   const auto& clip = orbitClip();
   FeatureTrackerOptions options;
-  options.occlusionAware();
+  options.wholeWindow();
   const auto a = measureTracker(clip, options);
-  print("orbit sigma 0, occlusion-aware", a);
+  print("orbit sigma 0, whole-window", a);
   REQUIRE(a.observations > 20000);
   CHECK(a.median <= 0.15);
   CHECK(a.p95 <= 1.0);
   CHECK(a.fraction_beyond_3px < 0.01);
   CHECK(a.drift_median_100 < 0.5);
   REQUIRE(a.visible_100 > 0);
-  // Issue 3: at least 90 % of the features whose corner stays visible survive 100 frames.
-  CHECK(static_cast<double>(a.survived_100) >= 0.9 * a.visible_100);
+  CHECK(static_cast<double>(a.survived_100) >= 0.75 * a.visible_100);
 }
 
 TEST_CASE("Tracking the orbit with noise sigma 5 keeps the median error under 0.3 px",
@@ -68,8 +69,8 @@ TEST_CASE("Tracking the orbit with noise sigma 5 keeps the median error under 0.
   CHECK(a.fraction_beyond_3px < 0.01);
   REQUIRE(a.visible_100 > 0);
   CHECK(static_cast<double>(a.survived_100) >= 0.75 * a.visible_100);
-  const auto b = measureTracker(clip, FeatureTrackerOptions{}.occlusionAware());
-  print("orbit sigma 5, occlusion-aware", b);
+  const auto b = measureTracker(clip, FeatureTrackerOptions{}.wholeWindow());
+  print("orbit sigma 5, whole-window", b);
   CHECK(b.median <= 0.3);
   CHECK(b.p95 <= 1.0);
   CHECK(b.fraction_beyond_3px < 0.01);

@@ -64,7 +64,7 @@ int runDevice(int argc, const char* const* argv) {
   cl.integer("repeat", "N", "passes, each with a fresh map (default 3)", &repeat, 1, 1000);
   cl.integer("threads", "N", "threads (only 1 is supported: every figure is single-core)", &threads,
              1, 1);
-  FeatureTrackerOptions to;
+  FeatureTrackerOptions to = FeatureTrackerOptions{}.wholeWindow();  // the device default
   cl.integer("window", "PX", "LK window side (default 21; pi4.conf: 15)", &to.window, 5, 61);
   cl.choice("lk-affine", {"true", "false"}, "affine LK at the base level (default true)",
             &lk_affine);

@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
   cl.flag("fb-all", "check every track forward-backward", &o.forward_backward);
   cl.real("refresh-residual", "R",
           "beyond this residual or --residual-scale-refresh frame medians a track is checked "
-          "forward-backward and takes a new template (default 0.5)",
+          "forward-backward and takes a new template (default 0.4)",
           &o.refresh_residual, 0.0, 1e9);
   cl.integer("iterations", "N", "LK iterations per level (default 10)", &o.max_iterations, 1, 1000);
   bool translation_only = false;
@@ -112,11 +112,12 @@ int main(int argc, char** argv) {
   cl.real("gate-speed", "FRACTION",
           "widen the Kalman gate by this fraction of the predicted speed (default 0.25)",
           &o.gate_speed_fraction, 0.0, 100.0);
-  bool occlusion_aware = false;
-  cl.flag("occlusion-aware",
-          "centre-window residual and stretch-gated template refresh (longer tracks; sets the "
-          "refresh residual to 0.4)",
-          &occlusion_aware);
+  bool whole_window = false;
+  cl.flag("whole-window",
+          "the earlier residual and refresh set: residual over the whole LK window, refresh "
+          "beyond 0.5 whatever the shape (sets --refresh-residual 0.5; default: centre window, "
+          "stretch-gated refresh)",
+          &whole_window);
   cl.integer("max-frames", "N", "stop after N frames (default: all)", &max_frames, 0, 100000000);
   cl.flag("quiet", "no progress on stderr", &quiet);
   cl.flag("frame-stats", "per frame on stderr: live tracks, losses by reason, detections, ms",
@@ -124,7 +125,7 @@ int main(int argc, char** argv) {
   if (const auto r = cl.parse(argc, argv); r != CommandLine::Result::kOk)
     return CommandLine::exitCode(r);
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
-  if (occlusion_aware) o.occlusionAware();
+  if (whole_window) o.wholeWindow();
   o.kalman_gate = !no_kalman;
   o.affine = !translation_only;
   epitrack::tools::Matcher matcher = epitrack::tools::Matcher::kAuto;

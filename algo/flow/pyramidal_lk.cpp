@@ -41,6 +41,15 @@ PyramidalLk::PyramidalLk(const LkOptions& options, int capacity)
   patch_size_ = side_ * tstride_;
   residual_radius_ = options_.residual_radius < 0 ? side_ / 4 : options_.residual_radius;
   if (residual_radius_ == 0 || residual_radius_ > half_) residual_radius_ = half_;
+  if (residual_radius_ < half_) {
+    centre_stride_ = (2 * residual_radius_ + 1 + 7) / 8 * 8;
+    centre_size_ = (2 * residual_radius_ + 1) * centre_stride_;
+    const std::size_t centre_total =
+        std::max<std::size_t>(static_cast<std::size_t>(capacity_) * centre_size_, 1);
+    centre_value_.reserve(centre_total);
+    centre_grad_x_.reserve(centre_total);
+    centre_grad_y_.reserve(centre_total);
+  }
   const std::size_t total = static_cast<std::size_t>(capacity_) *
                             static_cast<std::size_t>(level_count_) *
                             static_cast<std::size_t>(patch_size_);
@@ -382,12 +391,26 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
       if (r < half_) {
         ict = 0;
         ictt = 0;
+        const std::size_t centre = static_cast<std::size_t>(slot) * centre_size_;
         for (int v = half_ - r; v <= half_ + r; ++v) {
+          const std::size_t row =
+              centre + static_cast<std::size_t>(v - (half_ - r)) * centre_stride_;
           for (int u = half_ - r; u <= half_ + r; ++u) {
             const int value = T[v * tstride_ + u] >> kValueBits;
             ict += value;
             ictt += value * value;
           }
+          const std::size_t from = static_cast<std::size_t>(v * tstride_ + (half_ - r));
+          const int cols = 2 * r + 1;
+          std::copy_n(T + from, cols, centre_value_.data() + row);
+          std::copy_n(Sx + from, cols, centre_grad_x_.data() + row);
+          std::copy_n(Sy + from, cols, centre_grad_y_.data() + row);
+          std::fill(centre_value_.data() + row + cols, centre_value_.data() + row + centre_stride_,
+                    0);
+          std::fill(centre_grad_x_.data() + row + cols,
+                    centre_grad_x_.data() + row + centre_stride_, 0);
+          std::fill(centre_grad_y_.data() + row + cols,
+                    centre_grad_y_.data() + row + centre_stride_, 0);
         }
       }
       const double ct = static_cast<double>(ict), ctt = static_cast<double>(ictt);
@@ -422,6 +445,12 @@ void PyramidalLk::copyTemplate(int from, int to) {
   std::copy_n(value_.data() + patchIndex(from, 0), n, value_.data() + patchIndex(to, 0));
   std::copy_n(grad_x_.data() + patchIndex(from, 0), n, grad_x_.data() + patchIndex(to, 0));
   std::copy_n(grad_y_.data() + patchIndex(from, 0), n, grad_y_.data() + patchIndex(to, 0));
+  if (centre_size_ > 0) {
+    const std::size_t c = static_cast<std::size_t>(centre_size_);
+    std::copy_n(centre_value_.data() + from * c, c, centre_value_.data() + to * c);
+    std::copy_n(centre_grad_x_.data() + from * c, c, centre_grad_x_.data() + to * c);
+    std::copy_n(centre_grad_y_.data() + from * c, c, centre_grad_y_.data() + to * c);
+  }
   for (int l = 0; l < level_count_; ++l) {
     levels_[static_cast<std::size_t>(to * level_count_ + l)] =
         levels_[static_cast<std::size_t>(from * level_count_ + l)];
@@ -573,13 +602,19 @@ double PyramidalLk::centreResidual(int slot, ImageView<const uint8_t> image, dou
                warp)) {
     return -1.0;
   }
-  // The central (2r+1)^2 pixels of the base template, sampled as alignAffine does (the scalar
-  // kernel: it reads only the window's columns, not the padding beyond them).
-  const std::size_t offset =
-      patchIndex(slot, 0) + static_cast<std::size_t>((half_ - r) * tstride_ + (half_ - r));
+  // The central (2r+1)^2 pixels of the base template (their zero-padded copy), sampled as
+  // alignAffine does; every kernel variant gives the same sums.
+  const std::size_t offset = static_cast<std::size_t>(slot) * centre_size_;
   LkAffineSums sums;
-  lkAffineSumsScalar(image, warp, 2 * r + 1, value_.data() + offset, grad_x_.data() + offset,
-                     grad_y_.data() + offset, tstride_, sums);
+  if (options_.vector_kernels) {
+    lkAffineSumsVector(image, warp, 2 * r + 1, centre_value_.data() + offset,
+                       centre_grad_x_.data() + offset, centre_grad_y_.data() + offset,
+                       centre_stride_, sums);
+  } else {
+    lkAffineSumsScalar(image, warp, 2 * r + 1, centre_value_.data() + offset,
+                       centre_grad_x_.data() + offset, centre_grad_y_.data() + offset,
+                       centre_stride_, sums);
+  }
   const double rms = rmsAfterBias(sums.sum_e, sums.sum_sq, (2 * r + 1) * (2 * r + 1));
   return rms / levels_[static_cast<std::size_t>(slot * level_count_)].centre_contrast;
 }

@@ -138,9 +138,16 @@ class PyramidalLk {
   int tstride_ = 0;     // template row stride: side_ rounded up to 8 (zero padding, for vectors)
   int patch_size_ = 0;  // side_ * tstride_
   int residual_radius_ = 0;
+  int centre_stride_ = 0;  // row stride of the central residual window's copy (zero padding)
+  int centre_size_ = 0;    // (2 r + 1) * centre_stride_, 0 when the residual is the whole window
   AlignedBuffer<int16_t> value_;   // template values << kValueBits
   AlignedBuffer<int16_t> grad_x_;  // Scharr (unnormalised, 32 x intensity per pixel)
   AlignedBuffer<int16_t> grad_y_;
+  // The base template's central (2r+1)^2 window again, zero-padded to centre_stride_ so the
+  // vector kernels (which rely on zero padding) compute the centre residual.
+  AlignedBuffer<int16_t> centre_value_;
+  AlignedBuffer<int16_t> centre_grad_x_;
+  AlignedBuffer<int16_t> centre_grad_y_;
   std::vector<LevelTemplate> levels_;  // sized at construction
   struct AffineTemplate {
     bool valid = false;

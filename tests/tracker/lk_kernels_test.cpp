@@ -112,9 +112,12 @@ TEST_CASE("PyramidalLk tracks identically with the vector and the scalar kernel"
   epitrack::Pyramid pb(w, h, 4);
   pa.build(a.constView());
   pb.build(b.constView());
-  for (const bool affine : {false, true}) {
+  // Affine with the central residual window (the default, its zero-padded template copy), the
+  // whole window, and translation only.
+  for (const int mode : {0, 1, 2}) {
     epitrack::LkOptions o;
-    o.affine = affine;
+    o.affine = mode != 2;
+    o.residual_radius = mode == 1 ? 0 : -1;
     epitrack::LkOptions o_scalar = o;
     o_scalar.vector_kernels = false;
     epitrack::PyramidalLk vec(o, 64);

@@ -41,6 +41,11 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   point_obs_offset_.resize(np + 1);
   point_obs_index_.resize(no);
   point_obs_cursor_.resize(np);
+  pair_obs_.resize(no);
+  pair_slot_.resize(no);
+  pair_end_.resize(np);
+  pair_Wc_.resize(no);
+  pair_WV_.resize(no);
   V_.resize(np);
   gp_.resize(np);
   Vinv_.resize(np);
@@ -186,6 +191,25 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
   const auto pointFixed = [&](int p) {
     return !points_fixed.empty() && points_fixed[static_cast<std::size_t>(p)] != 0;
   };
+  // Each point's observations by free cameras, sorted by slot (insertion sort: a few dozen each).
+  for (int p = 0; p < np; ++p) {
+    const int begin = point_obs_offset_[static_cast<std::size_t>(p)];
+    int end = begin;
+    for (int a = begin; a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
+      const int i = point_obs_index_[static_cast<std::size_t>(a)];
+      const int slot =
+          camera_slot_[static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].camera)];
+      if (slot < 0) continue;
+      int e = end++;
+      for (; e > begin && pair_slot_[static_cast<std::size_t>(e - 1)] > slot; --e) {
+        pair_slot_[static_cast<std::size_t>(e)] = pair_slot_[static_cast<std::size_t>(e - 1)];
+        pair_obs_[static_cast<std::size_t>(e)] = pair_obs_[static_cast<std::size_t>(e - 1)];
+      }
+      pair_slot_[static_cast<std::size_t>(e)] = slot;
+      pair_obs_[static_cast<std::size_t>(e)] = i;
+    }
+    pair_end_[static_cast<std::size_t>(p)] = end;
+  }
 
   double rms = 0.0;
   double cost = evaluateCost(cameras, points, observations, k, options.huber_px, &rms);
@@ -245,6 +269,12 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
         for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
     }
     for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+    for (int p = 0; p < np; ++p) {
+      for (int e = point_obs_offset_[static_cast<std::size_t>(p)];
+           e < pair_end_[static_cast<std::size_t>(p)]; ++e)
+        pair_Wc_[static_cast<std::size_t>(e)] =
+            Wc_[static_cast<std::size_t>(pair_obs_[static_cast<std::size_t>(e)])];
+    }
     const double grad_norm = g.head(n).norm();
 
     // -- damped solves until a step lowers the cost --
@@ -271,21 +301,24 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
         for (int a = begin; a < end; ++a)
           Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
         const Eigen::Vector3d Vg = Vinv * gp_[pp];
-        for (int a = begin; a < end; ++a) {
-          const int ia = point_obs_index_[static_cast<std::size_t>(a)];
-          const int sa = camera_slot_[static_cast<std::size_t>(
-              observations[static_cast<std::size_t>(ia)].camera)];
-          if (sa < 0) continue;
-          const Eigen::Matrix<double, 6, 3> WaV = Wc_[static_cast<std::size_t>(ia)] * Vinv;
-          b.segment<6>(sa) += WaV * gp_[pp];
-          for (int bb = begin; bb < end; ++bb) {
-            const int ib = point_obs_index_[static_cast<std::size_t>(bb)];
-            const int sb = camera_slot_[static_cast<std::size_t>(
-                observations[static_cast<std::size_t>(ib)].camera)];
-            if (sb < sa) continue;  // upper triangle, mirrored below
-            A.block<6, 6>(sa, sb) -= WaV * Wc_[static_cast<std::size_t>(ib)].transpose();
+        const int pair_end = pair_end_[pp];
+        for (int e = begin; e < pair_end; ++e) {
+          const auto ee = static_cast<std::size_t>(e);
+          pair_WV_[ee] = pair_Wc_[ee] * Vinv;
+          const int sa = pair_slot_[ee];
+          b.segment<6>(sa) += pair_WV_[ee] * gp_[pp];
+          if (nk > 0) A.block(sa, k0, 6, nk) -= (pair_WV_[ee] * Wk_sum.transpose()).leftCols(nk);
+        }
+        // Upper triangle (sb >= sa), mirrored below; a camera seen twice pairs with both copies.
+        int group = begin;  // first entry of the current slot
+        for (int e = begin; e < pair_end; ++e) {
+          const auto ee = static_cast<std::size_t>(e);
+          const int sa = pair_slot_[ee];
+          if (pair_slot_[static_cast<std::size_t>(group)] != sa) group = e;
+          for (int f = group; f < pair_end; ++f) {
+            const auto ff = static_cast<std::size_t>(f);
+            A.block<6, 6>(sa, pair_slot_[ff]) -= pair_WV_[ee] * pair_Wc_[ff].transpose();
           }
-          if (nk > 0) A.block(sa, k0, 6, nk) -= (WaV * Wk_sum.transpose()).leftCols(nk);
         }
         if (nk > 0) {
           A.block(k0, k0, nk, nk) -= (Wk_sum * Vinv * Wk_sum.transpose()).topLeftCorner(nk, nk);

@@ -107,6 +107,14 @@ class BundleAdjuster {
   std::vector<int> point_obs_offset_;  // CSR over points: observations of point p
   std::vector<int> point_obs_index_;
   std::vector<int> point_obs_cursor_;
+  // Per point, its observations by free cameras sorted by reduced-system slot (the CSR offsets
+  // above; pair_end_ ends the free ones), with contiguous copies of their W blocks: the Schur
+  // complement's pair loop then reads memory in order and visits each camera pair once.
+  std::vector<int> pair_obs_;
+  std::vector<int> pair_slot_;
+  std::vector<int> pair_end_;
+  std::vector<Eigen::Matrix<double, 6, 3>> pair_Wc_;
+  std::vector<Eigen::Matrix<double, 6, 3>> pair_WV_;
   std::vector<Eigen::Matrix3d> V_;               // per point J_p^T W J_p
   std::vector<Eigen::Vector3d> gp_;              // per point J_p^T W r
   std::vector<Eigen::Matrix<double, 6, 3>> Wc_;  // per observation J_c^T W J_p

@@ -48,5 +48,10 @@ if [ "${EPITRACK_SANITIZER_FULL:-0}" != 1 ]; then
   # The real key-frame solves (TUM cabinet 12 s, templeRing 4 s in Release): the descriptor
   # matcher and the key-frame solver run here on the rendered key frames.
   exclude+='|^TUM.fr3.cabinet.key.frames|^templeRing.views.12-30'
+  # The whole-window tracker set's accuracy sweep (the 340-frame orbit again, 17 s in Release,
+  # several minutes under ASan) and the real-sequence solves (KITTI 13-17 s, templeRing 229 s
+  # under ASan: its focal profile runs a dozen whole solves); the same tracker and solver code
+  # runs here through the default-set tracker tests and the shorter solve tests.
+  exclude+='|^The whole-window option set|^Real solve:'
 fi
 ctest --test-dir "$build" -j "$jobs" --output-on-failure -E "$exclude" ${EPITRACK_CTEST_ARGS:-}

@@ -68,6 +68,31 @@ TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli]") {
   CHECK(m.ate_rmse_rel < 1e-3);
 }
 
+TEST_CASE("epitrack-solve --refine-focal starts from a given focal 3 % off and refines it",
+          "[solve][cli]") {
+  TempDir dir("solve-refine");
+  const std::string clip = dir.file("orbit");
+  REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " --scene orbit --frames 120 --out " +
+              clip + " 2>/dev/null") == 0);
+  const std::string exe = binaryPath("tools/solve/epitrack-solve");
+  // Without a focal to start from the flag is a usage error.
+  CHECK(run(exe + " " + clip + "/frames --out " + dir.file("bad") +
+            " --refine-focal --quiet 2>/dev/null") == 2);
+  const std::string out = dir.file("out");
+  REQUIRE(run(exe + " " + clip + "/frames --out " + out + " --focal 618 --refine-focal --quiet") ==
+          0);
+  const std::string summary = readWholeFile(out + "/summary.json");
+  INFO(summary.substr(0, 600));
+  CHECK(summary.find("\"focal_source\": \"given\"") != std::string::npos);
+  CHECK(summary.find("\"focal_refined\": true") != std::string::npos);
+  CHECK(jsonNumber(summary, "focal_given_px") == 618.0);
+  CHECK(std::abs(jsonNumber(summary, "focal_px") / 600.0 - 1.0) < 0.002);
+  const auto m = evaluate(clip + "/groundtruth.txt", out + "/cameras.tum");
+  INFO("ate_rmse_rel " << m.ate_rmse_rel * 100 << " %");
+  CHECK(m.matched_frames == 120);
+  CHECK(m.ate_rmse_rel < 2e-4);
+}
+
 TEST_CASE("epitrack-solve solves a short forward dolly", "[solve][cli]") {
   // Forward motion: central tracks barely move and the pairs look like homographies; the widest
   // baseline must still initialise (a regression: this clip once ended in "planar-scene").

@@ -143,6 +143,10 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("focal_px", k.fx);
   j.field("focal_source", rec.focal_source);
   j.field("focal_observable", rec.focal_observable);
+  if (rec.focal_given_px > 0.0) {
+    j.field("focal_refined", true);
+    j.field("focal_given_px", rec.focal_given_px);
+  }
   j.field("motion", rec.motion);
   if (!rec.matcher.empty()) j.field("matcher", rec.matcher);
   j.field("mean_reproj_px", mean_px);

@@ -93,6 +93,9 @@ struct Reconstruction {
 
   std::string focal_source = "given";  ///< "given", "self-calibrated" or "fallback"
   bool focal_observable = true;
+  /// > 0: the focal was given (--intrinsics or --focal) and refined from this value
+  /// (epitrack-solve --refine-focal); summary.json says focal_refined and focal_given_px.
+  double focal_given_px = 0.0;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   std::string status = "ok";       ///< "ok" or the reason the solve failed

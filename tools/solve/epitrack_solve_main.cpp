@@ -52,6 +52,10 @@ int main(int argc, char** argv) {
           &o.intrinsics_file);
   cl.real("focal", "PX", "given focal length in pixels (principal point at the centre)",
           &o.focal_px, 1.0, 1e6);
+  cl.flag("refine-focal",
+          "with --intrinsics or --focal: the given focal is a starting value, refined in the "
+          "final bundle adjustment (lens metadata, an approximate calibration)",
+          &o.solver.refine_given_focal);
   cl.choice("distortion", {"none", "k1", "k1k2"},
             "radial distortion to estimate in the final bundle adjustment (default none)",
             &distortion);
@@ -104,6 +108,8 @@ int main(int argc, char** argv) {
   if (o.tracker.window % 2 == 0) return cl.usageError("--window must be odd");
   if (!o.intrinsics_file.empty() && o.focal_px > 0.0)
     return cl.usageError("give either --intrinsics or --focal, not both");
+  if (o.solver.refine_given_focal && o.intrinsics_file.empty() && !(o.focal_px > 0.0))
+    return cl.usageError("--refine-focal needs a focal to start from (--intrinsics or --focal)");
   std::string error;
   if (!epitrack::io::parseOriginOption(o.origin_text, o.scene, error))
     return cl.usageError("--origin: " + error);

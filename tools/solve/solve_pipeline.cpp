@@ -373,6 +373,7 @@ int runSolve(const SolveCommandOptions& o) {
   rec.intrinsics.k2 = solver.k2();
   rec.focal_source = solver.focalSource();
   rec.focal_observable = solver.focalObservable();
+  if (so.refine_given_focal && so.focal_px > 0.0) rec.focal_given_px = so.focal_px;
   rec.motion = solver.motion();
   rec.status = toString(solver.status());
   rec.message = solver.message();
@@ -579,12 +580,16 @@ int runSolve(const SolveCommandOptions& o) {
   }
   double mean = 0.0, median = 0.0;
   io::reprojectionStatistics(rec, mean, median);
+  char refined_from[64] = "";
+  if (rec.focal_given_px > 0.0)
+    std::snprintf(refined_from, sizeof(refined_from), ", refined from %.2f", rec.focal_given_px);
   char line[512];
   std::snprintf(line, sizeof(line),
-                "%s: %d/%d frames solved, focal %.2f px (%s%s%s), %zu points, reprojection "
+                "%s: %d/%d frames solved, focal %.2f px (%s%s%s%s), %zu points, reprojection "
                 "mean %.3f px, %.2f s; outputs in %s",
                 rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
-                rec.focal_source.c_str(), rec.focal_observable ? "" : ", not observable from F",
+                rec.focal_source.c_str(), refined_from,
+                rec.focal_observable ? "" : ", not observable from F",
                 rec.focal_fallback == "profile"
                     ? ", from the reprojection profile"
                     : (rec.focal_fallback == "profile-flat" ? ", profile flat: a guess" : ""),

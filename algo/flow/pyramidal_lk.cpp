@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -400,17 +401,15 @@ LkStatus PyramidalLk::setTemplate(int slot, const Pyramid& pyramid, float x, flo
             ict += value;
             ictt += value * value;
           }
+          // The row again, zero-padded to centre_stride_ (the vector kernels need the padding).
           const std::size_t from = static_cast<std::size_t>(v * tstride_ + (half_ - r));
           const int cols = 2 * r + 1;
-          std::copy_n(T + from, cols, centre_value_.data() + row);
-          std::copy_n(Sx + from, cols, centre_grad_x_.data() + row);
-          std::copy_n(Sy + from, cols, centre_grad_y_.data() + row);
-          std::fill(centre_value_.data() + row + cols, centre_value_.data() + row + centre_stride_,
-                    0);
-          std::fill(centre_grad_x_.data() + row + cols,
-                    centre_grad_x_.data() + row + centre_stride_, 0);
-          std::fill(centre_grad_y_.data() + row + cols,
-                    centre_grad_y_.data() + row + centre_stride_, 0);
+          const std::pair<const int16_t*, int16_t*> copies[] = {
+              {T, centre_value_.data()}, {Sx, centre_grad_x_.data()}, {Sy, centre_grad_y_.data()}};
+          for (const auto& [src, dst] : copies) {
+            std::copy_n(src + from, cols, dst + row);
+            std::fill(dst + row + cols, dst + row + centre_stride_, 0);
+          }
         }
       }
       const double ct = static_cast<double>(ict), ctt = static_cast<double>(ictt);

@@ -84,10 +84,11 @@ struct FeatureTrackerOptions {
   double refresh_stretch = 1.4;
   /// The occlusion-aware residual and refresh settings described above (the defaults).
   FeatureTrackerOptions& occlusionAware() {
-    residual_radius = -1;
-    refresh_residual = 0.4;
-    refresh_min_stretch = 1.3;
-    refresh_stretch = 1.4;
+    const FeatureTrackerOptions defaults;  // the values are the member initializers above
+    residual_radius = defaults.residual_radius;
+    refresh_residual = defaults.refresh_residual;
+    refresh_min_stretch = defaults.refresh_min_stretch;
+    refresh_stretch = defaults.refresh_stretch;
     return *this;
   }
   /// The earlier whole-window residual and refresh settings (see above).

@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 
 #include <cstdio>
+#include <sstream>
 #include <string>
 
 #include "tests/support/test_support.hpp"
@@ -120,4 +121,98 @@ TEST_CASE("epitrack-solve reports bad input clearly", "[solve][cli]") {
   CHECK(run(exe + " " + dir.path() + " --out " + dir.file("o") +
             " --focal 500 --intrinsics x 2>/dev/null") == 2);
   CHECK(run(exe + " --help >/dev/null") == 0);
+}
+
+namespace {
+
+// landmarks.txt (`frame id x y`, the true projections) as a tracks.csv; `frames` frames at most.
+std::string landmarksAsTracksCsv(const std::string& landmarks, int frames) {
+  std::string csv = "frame,track_id,x,y\n";
+  std::istringstream in(readWholeFile(landmarks));
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    int frame = 0, id = 0;
+    double x = 0, y = 0;
+    fields >> frame >> id >> x >> y;
+    if (frame >= frames) continue;
+    char row[96];
+    std::snprintf(row, sizeof(row), "%d,%d,%.3f,%.3f\n", frame, id, x, y);
+    csv += row;
+  }
+  return csv;
+}
+
+void writeText(const std::string& path, const std::string& text) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  REQUIRE(f != nullptr);
+  REQUIRE(std::fwrite(text.data(), 1, text.size(), f) == text.size());
+  std::fclose(f);
+}
+
+}  // namespace
+
+TEST_CASE("epitrack-solve --tracks solves given 2D tracks instead of tracking", "[solve][cli]") {
+  TempDir dir("solve-tracks");
+  const std::string clip = dir.file("orbit");
+  REQUIRE(run(binaryPath("tools/synth/epitrack-synth") +
+              " --scene orbit --frames 40 --target-wander 0.5 --out " + clip + " 2>/dev/null") ==
+          0);
+  const std::string exe = binaryPath("tools/solve/epitrack-solve");
+  const std::string tracks = dir.file("tracks.csv");
+  writeText(tracks, landmarksAsTracksCsv(clip + "/landmarks.txt", 40));
+
+  SECTION("the true projections give the true cameras and focal") {
+    const std::string out = dir.file("out");
+    REQUIRE(run(exe + " " + clip + "/frames --out " + out + " --tracks " + tracks + " --quiet") ==
+            0);
+    const std::string summary = readWholeFile(out + "/summary.json");
+    INFO(summary.substr(0, 800));
+    CHECK(summary.find("\"matcher\": \"given\"") != std::string::npos);
+    CHECK(summary.find("\"focal_source\": \"self-calibrated\"") != std::string::npos);
+    // Coordinates rounded to 1/1000 px: the focal within 0.01 %, the path within 1e-6.
+    CHECK(std::abs(jsonNumber(summary, "focal_px") / 600.0 - 1.0) < 1e-4);
+    CHECK(jsonNumber(summary, "mean_reproj_px") < 0.01);
+    const auto m = evaluate(clip + "/groundtruth.txt", out + "/cameras.tum");
+    INFO("ate_rmse_rel " << m.ate_rmse_rel * 100 << " % rot " << m.rot_err_deg_mean << " deg");
+    CHECK(m.matched_frames == 40);
+    CHECK(m.ate_rmse_rel < 1e-6);
+    CHECK(m.rot_err_deg_mean < 1e-3);
+  }
+  SECTION("epitrack-track's tracks solve as the solve's own tracking does") {
+    const std::string own = dir.file("own"), given = dir.file("given");
+    const std::string csv = dir.file("lk.csv");
+    REQUIRE(run(binaryPath("tools/track/epitrack-track") + " " + clip + "/frames --out " + csv +
+                " --features 600 --matcher lk 2>/dev/null") == 0);
+    REQUIRE(run(exe + " " + clip + "/frames --out " + own +
+                " --focal 600 --features 600 --matcher lk --quiet") == 0);
+    REQUIRE(run(exe + " " + clip + "/frames --out " + given + " --focal 600 --tracks " + csv +
+                " --quiet") == 0);
+    const auto a = evaluate(clip + "/groundtruth.txt", own + "/cameras.tum");
+    const auto b = evaluate(clip + "/groundtruth.txt", given + "/cameras.tum");
+    INFO("own " << a.ate_rmse_rel * 100 << " %, given " << b.ate_rmse_rel * 100 << " %");
+    CHECK(b.matched_frames == 40);
+    CHECK(b.ate_rmse_rel < 2e-4);
+    // tracks.csv keeps 1/1000 px: the same solve to within that rounding.
+    CHECK(std::abs(a.ate_rmse_rel - b.ate_rmse_rel) < 0.1 * a.ate_rmse_rel + 1e-6);
+  }
+  SECTION("unusable tracks are refused before anything is written") {
+    const std::string bad = dir.file("bad.csv");
+    writeText(bad, "frame,track_id,x,y\n0,1,10.0,20.0\n40,1,11.0,21.0\n");  // clip: frames 0-39
+    CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o1") + " --tracks " + bad +
+              " --quiet 2>/dev/null") == 2);
+    CHECK(!exists(dir.file("o1")));
+    writeText(bad, "frame,track,x\n0,1,10\n");  // not a tracks.csv
+    CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o2") + " --tracks " + bad +
+              " --quiet 2>/dev/null") == 2);
+    CHECK(!exists(dir.file("o2")));
+    writeText(bad, "frame,track_id,x,y\n0,1,nan,20.0\n");
+    CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o3") + " --tracks " + bad +
+              " --quiet 2>/dev/null") == 2);
+    CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o4") + " --tracks " +
+              dir.file("missing.csv") + " --quiet 2>/dev/null") == 2);
+    CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o5") + " --tracks " + tracks +
+              " --mask " + clip + "/frames/000000.pgm --quiet 2>/dev/null") == 2);
+  }
 }

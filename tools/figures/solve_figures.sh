@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Reproduces the solver figures of the README: epitrack-synth clip -> epitrack-solve -> epitrack-eval,
 # one line per scenario. Usage: tools/figures/solve_figures.sh [BUILD_DIR] (default build/dev).
-# Scratch output goes to $EPITRACK_FIG_DIR (default /tmp/epitrack-figures).
+# Scratch output goes to $EPITRACK_FIG_DIR (default /tmp/epitrack-figures); EPITRACK_FIG_SOLVE_ARGS
+# is appended to every epitrack-solve call (e.g. "--features 300" to compare a setting).
 set -u
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 B=${1:-$root/build/dev}
@@ -13,7 +14,7 @@ run() {
   # shellcheck disable=SC2086
   "$B/tools/synth/epitrack-synth" $synth --out "$dir" >/dev/null 2>&1
   # shellcheck disable=SC2086
-  "$B/tools/solve/epitrack-solve" "$dir/frames" --out "$dir/solve" --quiet $solve 2>/dev/null
+  "$B/tools/solve/epitrack-solve" "$dir/frames" --out "$dir/solve" --quiet $solve ${EPITRACK_FIG_SOLVE_ARGS:-} 2>/dev/null
   local rc=$?
   local ev
   ev=$("$B/tools/eval/epitrack-eval" --gt "$dir/groundtruth.txt" --est "$dir/solve/cameras.tum" \

@@ -59,6 +59,12 @@ int main(int argc, char** argv) {
   cl.choice("distortion", {"none", "k1", "k1k2"},
             "radial distortion to estimate in the final bundle adjustment (default none)",
             &distortion);
+  cl.text("tracks", "CSV",
+          "solve these 2D tracks (tracks.csv: frame,track_id,x,y, frames numbered as "
+          "epitrack-track numbers INPUT's readable frames) instead of tracking INPUT; INPUT "
+          "still gives the frame size and the frames to render; with --matcher descriptors "
+          "they are solved as key frames",
+          &o.tracks_file);
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &o.mask);
   cl.text("origin", "plane|first-camera|track:ID",
@@ -110,6 +116,8 @@ int main(int argc, char** argv) {
     return cl.usageError("give either --intrinsics or --focal, not both");
   if (o.solver.refine_given_focal && o.intrinsics_file.empty() && !(o.focal_px > 0.0))
     return cl.usageError("--refine-focal needs a focal to start from (--intrinsics or --focal)");
+  if (!o.tracks_file.empty() && !o.mask.empty())
+    return cl.usageError("--mask applies to tracking; the tracks of --tracks are used as given");
   std::string error;
   if (!epitrack::io::parseOriginOption(o.origin_text, o.scene, error))
     return cl.usageError("--origin: " + error);

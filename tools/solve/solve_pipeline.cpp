@@ -17,6 +17,7 @@
 #include "hal/io/file_util.hpp"
 #include "hal/io/image_codec.hpp"
 #include "hal/io/text_formats.hpp"
+#include "hal/io/tracks_csv.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
 #include "tools/export/output_writers.hpp"
@@ -184,6 +185,44 @@ int runSolve(const SolveCommandOptions& o) {
     fail(error.c_str());
     return 2;
   }
+  // --tracks: read and checked (syntax, finite coordinates) before anything is written; the
+  // frame range is checked against the clip once its length is known.
+  std::vector<hal::TrackRow> given_rows;
+  const bool given_tracks = !o.tracks_file.empty();
+  if (given_tracks) {
+    if (!hal::readTracksCsv(o.tracks_file, given_rows, error)) {
+      fail(error.c_str());
+      return 2;
+    }
+    if (given_rows.empty()) {
+      fail(("'" + o.tracks_file + "' holds no observation").c_str());
+      return 2;
+    }
+    for (const auto& r : given_rows) {
+      if (r.frame < 0 || !std::isfinite(r.x) || !std::isfinite(r.y)) {
+        char msg[160];
+        std::snprintf(msg, sizeof(msg), "'%s': frame %lld, track %d: ", o.tracks_file.c_str(),
+                      static_cast<long long>(r.frame), r.track_id);
+        fail((std::string(msg) + (r.frame < 0 ? "negative frame" : "coordinates not finite"))
+                 .c_str());
+        return 2;
+      }
+    }
+    // TrackTable takes frames in order; a stable sort keeps each frame's rows as written.
+    std::stable_sort(
+        given_rows.begin(), given_rows.end(),
+        [](const hal::TrackRow& a, const hal::TrackRow& b) { return a.frame < b.frame; });
+  }
+  // A clip of known length is checked now; a stream's once it has been read.
+  if (given_tracks && source->info().frame_count > 0 &&
+      given_rows.back().frame >= static_cast<int64_t>(source->info().frame_count)) {
+    char msg[256];
+    std::snprintf(msg, sizeof(msg), "'%s' has observations in frame %lld but INPUT has %ld frames",
+                  o.tracks_file.c_str(), static_cast<long long>(given_rows.back().frame),
+                  static_cast<long>(source->info().frame_count));
+    fail(msg);
+    return 2;
+  }
   MaskSource masks;
   if (!masks.open(o.mask, error)) {
     fail(error.c_str());
@@ -211,7 +250,8 @@ int runSolve(const SolveCommandOptions& o) {
 
   // --- 2D tracking of the whole clip ---------------------------------------------------------
   const long expected = static_cast<long>(source->info().frame_count);
-  progress.begin("tracking", expected);
+  // With --tracks the frames are only read (size, count, timestamps, point colours).
+  progress.begin(given_tracks ? "reading" : "tracking", expected);
   std::unique_ptr<ClipTracker> tracker;
   TrackTable tracks;
   std::unordered_map<int64_t, uint8_t> track_gray;
@@ -233,6 +273,7 @@ int runSolve(const SolveCommandOptions& o) {
     if (st == hal::FrameStatus::kCorruptFrame || st == hal::FrameStatus::kTimeout) {
       ++skipped;
       if (tracker) tracker->skipFrames(1);
+
       progress.message("skipping frame: " + source->lastError());
       continue;
     }
@@ -247,47 +288,70 @@ int runSolve(const SolveCommandOptions& o) {
                        " frames before it");
       break;
     }
-    if (!tracker) {
-      width = frame.luma.width;
-      height = frame.luma.height;
-      const double need = estimateSolveMemoryBytes(width, height, o.tracker.max_features,
-                                                   o.tracker.window, std::max<long>(expected, 1));
-      if (need > o.max_memory_mib * 1024.0 * 1024.0) {
-        char msg[256];
-        std::snprintf(msg, sizeof(msg),
-                      "a %dx%d clip of %ld frames needs about %.0f MiB, above the limit of %.0f "
-                      "MiB (--max-memory)",
-                      width, height, std::max<long>(expected, 1), need / (1024.0 * 1024.0),
-                      o.max_memory_mib);
-        fail(msg);
-        return 1;
-      }
-      DescriptorTrackerOptions matching = o.matching;
-      if (so.focal_px > 0.0) {  // known intrinsics: five-point verification of the pairs
-        matching.focal_px = so.focal_px;
-        matching.cx = so.has_principal_point ? so.cx : (width - 1) * 0.5;
-        matching.cy = so.has_principal_point ? so.cy : (height - 1) * 0.5;
-        matching.aspect = so.aspect;
-      }
-      tracker = std::make_unique<ClipTracker>(o.matcher, o.tracker, matching, width, height,
-                                              expected > 0 ? static_cast<int>(expected) : 1024);
-    }
-    ImageView<const uint8_t> mask;
-    if (!masks.maskFor(frames, width, height, mask, error)) {
-      fail(error.c_str());
-      return 2;
-    }
-    if (tracker->track(frame.luma, mask) != ClipTracker::Status::kOk) {
+    // A frame of another size ends the clip: the frames before it are solved.
+    const auto stopAtSizeChange = [&] {
       input_error = "frame " + std::to_string(frame.index) + " is " +
                     std::to_string(frame.luma.width) + "x" + std::to_string(frame.luma.height) +
                     ", the clip started at " + std::to_string(width) + "x" + std::to_string(height);
       progress.message("input stopped: " + input_error + "; solving the " + std::to_string(frames) +
                        " frames before it");
-      break;
-    }
-    if (!decision_reported && !tracker->decision().empty()) {
-      progress.message("matcher: " + tracker->decision());
-      decision_reported = true;
+    };
+    if (given_tracks) {
+      // Frames are numbered as epitrack-track numbers them (readable frames, from 0).
+      if (frames == 0) {
+        width = frame.luma.width;
+        height = frame.luma.height;
+      } else if (frame.luma.width != width || frame.luma.height != height) {
+        stopAtSizeChange();
+        break;
+      }
+      // Point colours: each track's gray value where it is first seen.
+      const auto before = [](const hal::TrackRow& r, long f) { return r.frame < f; };
+      for (auto it = std::lower_bound(given_rows.begin(), given_rows.end(), frames, before);
+           it != given_rows.end() && it->frame == frames; ++it) {
+        const int x = std::clamp(static_cast<int>(std::lround(it->x)), 0, width - 1);
+        const int y = std::clamp(static_cast<int>(std::lround(it->y)), 0, height - 1);
+        track_gray.try_emplace(it->track_id, frame.luma(x, y));
+      }
+    } else {
+      if (!tracker) {
+        width = frame.luma.width;
+        height = frame.luma.height;
+        const double need = estimateSolveMemoryBytes(width, height, o.tracker.max_features,
+                                                     o.tracker.window, std::max<long>(expected, 1));
+        if (need > o.max_memory_mib * 1024.0 * 1024.0) {
+          char msg[256];
+          std::snprintf(msg, sizeof(msg),
+                        "a %dx%d clip of %ld frames needs about %.0f MiB, above the limit of %.0f "
+                        "MiB (--max-memory)",
+                        width, height, std::max<long>(expected, 1), need / (1024.0 * 1024.0),
+                        o.max_memory_mib);
+          fail(msg);
+          return 1;
+        }
+        DescriptorTrackerOptions matching = o.matching;
+        if (so.focal_px > 0.0) {  // known intrinsics: five-point verification of the pairs
+          matching.focal_px = so.focal_px;
+          matching.cx = so.has_principal_point ? so.cx : (width - 1) * 0.5;
+          matching.cy = so.has_principal_point ? so.cy : (height - 1) * 0.5;
+          matching.aspect = so.aspect;
+        }
+        tracker = std::make_unique<ClipTracker>(o.matcher, o.tracker, matching, width, height,
+                                                expected > 0 ? static_cast<int>(expected) : 1024);
+      }
+      ImageView<const uint8_t> mask;
+      if (!masks.maskFor(frames, width, height, mask, error)) {
+        fail(error.c_str());
+        return 2;
+      }
+      if (tracker->track(frame.luma, mask) != ClipTracker::Status::kOk) {
+        stopAtSizeChange();
+        break;
+      }
+      if (!decision_reported && !tracker->decision().empty()) {
+        progress.message("matcher: " + tracker->decision());
+        decision_reported = true;
+      }
     }
     timestamps.push_back(frame.timestamp_s);
     if (keep_frames) {
@@ -315,11 +379,37 @@ int runSolve(const SolveCommandOptions& o) {
     fail("the input holds no readable frame");
     return 1;
   }
-  tracker->finish(tracks, features_per_frame, track_gray);
-  if (!decision_reported) progress.message("matcher: " + tracker->decision());
-  rec.matcher = matcherName(tracker->chosen());
-  // Key frames (descriptor tracks): every frame a keyframe, next-best-view registration.
-  if (tracker->chosen() == Matcher::kDescriptors) so.keyframe_collection = true;
+  if (given_tracks) {
+    if (given_rows.back().frame >= frames) {
+      char msg[256];
+      std::snprintf(msg, sizeof(msg),
+                    "'%s' has observations in frame %lld but INPUT has %d readable frames (0-%d)",
+                    o.tracks_file.c_str(), static_cast<long long>(given_rows.back().frame), frames,
+                    frames - 1);
+      fail(msg);
+      return 2;
+    }
+    tracks.reserve(frames, given_rows.size());
+    features_per_frame.assign(static_cast<std::size_t>(frames), 0);
+    for (const auto& r : given_rows) {
+      tracks.add(static_cast<int>(r.frame), r.track_id, r.x, r.y);
+      ++features_per_frame[static_cast<std::size_t>(r.frame)];
+    }
+    tracks.setFrameCount(frames);
+    tracks.finalize();
+    rec.matcher = "given";
+    progress.message("tracks: " + std::to_string(given_rows.size()) + " observations of " +
+                     std::to_string(tracks.trackCount()) + " tracks from " + o.tracks_file);
+    // Tracks that are not continuous video tracks (key frames, matched photos) are solved as a
+    // key-frame collection, as the descriptor matcher's are.
+    if (o.matcher == Matcher::kDescriptors) so.keyframe_collection = true;
+  } else {
+    tracker->finish(tracks, features_per_frame, track_gray);
+    if (!decision_reported) progress.message("matcher: " + tracker->decision());
+    rec.matcher = matcherName(tracker->chosen());
+    // Key frames (descriptor tracks): every frame a keyframe, next-best-view registration.
+    if (tracker->chosen() == Matcher::kDescriptors) so.keyframe_collection = true;
+  }
   clock.lap("tracking");
 
   // --- 3D solve ---------------------------------------------------------------------------------

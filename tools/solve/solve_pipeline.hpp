@@ -19,7 +19,11 @@ namespace epitrack::tools {
 struct SolveCommandOptions {
   std::string input;
   std::string out_dir;
-  std::string mask;             ///< PGM or directory of PGMs (0 = never track)
+  std::string mask;  ///< PGM or directory of PGMs (0 = never track)
+  /// tracks.csv to solve instead of tracking INPUT (--tracks): another tracker's or an edited
+  /// epitrack-track output; INPUT still gives the frame size, the clip length and the frames
+  /// drawn by --render/--overlay.
+  std::string tracks_file;
   std::string intrinsics_file;  ///< given intrinsics (focal, principal point, distortion)
   double focal_px = 0.0;        ///< given focal (0: self-calibrate)
   int distortion = 0;           ///< 0 none, 1 k1, 2 k1k2 (estimated)

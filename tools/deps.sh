@@ -6,6 +6,7 @@
 #   tools/deps.sh fuzz        clang and its sanitizer runtimes (libFuzzer)
 #   tools/deps.sh video       ffmpeg (ffprobe checks of written videos)
 #   tools/deps.sh browser     chromium (report rendering check)
+#   tools/deps.sh colmap      COLMAP (the reference solves of tools/figures/colmap_reference.sh)
 set -euo pipefail
 
 want=()
@@ -19,6 +20,7 @@ for group in "${@:-base}"; do
     fuzz) want+=(clang libclang-rt-dev) ;;
     video) want+=(ffmpeg) ;;
     browser) want+=(chromium) ;;
+    colmap) want+=(colmap) ;;
     *) echo "deps.sh: unknown group '$group'" >&2; exit 2 ;;
   esac
 done

@@ -58,9 +58,11 @@ TEST_CASE("Real solve: KITTI seq06 excerpt, given intrinsics", "[solve][real]") 
 }
 
 TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real]") {
-  // Issue 6 asks ATE <= 0.1 %; reached: 51/51 at 1.34 % (stop 15), a scale drift along the turn.
-  // The tracks prefer a focal about 1 % below the given 718.9 px (bundle adjustment with the
-  // focal free reaches 0.27 % at 699 px): see the README.
+  // Issue 6 asks ATE <= 0.1 %; reached: 51/51 at 1.15 % (stop 17, 600 features; 1.35 % with
+  // 300), a scale drift along the turn. The target is not reachable with the given focal: COLMAP's
+  // own bundle adjustment started at the ground-truth poses, K fixed, converges to 0.69 % on its
+  // SIFT tracks (the images and K prefer fx ~ 701 px, fy ~ 680 px to the given 718.856; README,
+  // "KITTI highway: what the data allows").
   if (!haveSharedSequence("kitti_highway_excerpt")) return;
   const std::string d = sharedDataDir() + "/kitti_highway_excerpt";
   TempDir dir("real-kittihw");
@@ -68,18 +70,18 @@ TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real]"
   INFO("ate " << r.m.ate_rmse_rel * 100 << " % rot " << r.m.rot_err_deg_mean << " deg");
   CHECK(jsonString(r.summary, "status") == "ok");
   CHECK(r.m.matched_frames == 51);
-  CHECK(r.m.ate_rmse_rel <= 0.016);
+  CHECK(r.m.ate_rmse_rel <= 0.013);
 }
 
 TEST_CASE("Real solve: Middlebury templeRing views 12-30, given and self-calibrated",
           "[solve][real]") {
-  // Issue 6 asks <= 0.1 % and a self-calibrated focal within 0.5 %. Reached (stop 15): given
-  // intrinsics 19/19 at 0.13 % (0.33 % before the robust cut, 0.17 % with the whole-window
-  // tracker); self-calibrated, the ring is critical for F (optical axes meet) and the focal
-  // profile finds 1530.8 px: 0.68 % from fx 1520.4, 0.32 % from fy 1525.9 (the model has one
-  // square-pixel focal), 49 % off with the field-of-view fallback before. The tracks pin the
-  // focal to about +-2 % only (the bundle-adjusted focal moves 1474-1536 px with the tracker's
-  // options and the principal point), so this holds the figure reached, not the issue's.
+  // Issue 6 asks <= 0.1 % and a self-calibrated focal within 0.5 %. Reached (stop 17, 600
+  // features): given intrinsics 19/19 at 0.083 % (0.130 % with 300 features); self-calibrated,
+  // the ring is critical for F (optical axes meet) and the focal profile and the final adjustment
+  // find 1521.4 px: 0.07 % from fx 1520.4, 0.29 % from fy 1525.9 (the model has one square-pixel
+  // focal and the principal point at the centre, 17 px from the true one). The focal is weakly
+  // observed (1514-1538 px over sub-clips of the run, README), so this is the test most likely
+  // to move with the tracker.
   if (!haveSharedSequence("middlebury_templeRing")) return;
   const std::string d = sharedDataDir() + "/middlebury_templeRing";
   TempDir dir("real-temple");
@@ -108,13 +110,13 @@ TEST_CASE("Real solve: Middlebury templeRing views 12-30, given and self-calibra
   INFO("given: ate " << r.m.ate_rmse_rel * 100 << " % rot " << r.m.rot_err_deg_mean << " deg");
   CHECK(jsonString(r.summary, "status") == "ok");
   CHECK(r.m.matched_frames == 19);
-  CHECK(r.m.ate_rmse_rel <= 0.0025);
+  CHECK(r.m.ate_rmse_rel <= 0.001);
   const auto u = solveAndScore(dir, frames, "", dir.file("groundtruth.txt"), "self");
   const double focal = jsonNumber(u.summary, "focal_px");
   INFO("self-calibrated: focal " << focal << " (" << jsonString(u.summary, "focal_fallback")
                                  << ") ate " << u.m.ate_rmse_rel * 100 << " %");
   CHECK(jsonString(u.summary, "status") == "ok");
   CHECK(u.m.matched_frames == 19);
-  CHECK(std::abs(focal / 1520.4 - 1.0) <= 0.009);
-  CHECK(u.m.ate_rmse_rel <= 0.0025);
+  CHECK(std::abs(focal / 1520.4 - 1.0) <= 0.005);
+  CHECK(u.m.ate_rmse_rel <= 0.0015);
 }

@@ -21,6 +21,7 @@
 #include "tools/bench/bench_input.hpp"
 #include "tools/bench/bench_registry.hpp"
 #include "tools/bench/opencv_tracker.hpp"
+#include "tools/common/clip_tracker.hpp"
 #include "tools/common/command_line.hpp"
 #include "tools/eval/trajectory_metrics.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
@@ -320,6 +321,7 @@ int runSolve(int argc, const char* const* argv) {
   int frame_count = 340;
   double focal = 0.0;
   FeatureTrackerOptions to;
+  to.max_features = tools::kSolveFeatures;  // epitrack-solve's default
   tools::CommandLine cl(
       "epitrack-bench solve", "[INPUT] [--repeat N] [--frames N] [--focal PX]",
       "Times the whole solve (2D tracking, calibration, initialisation,\n"
@@ -332,6 +334,8 @@ int runSolve(int argc, const char* const* argv) {
              1, 100);
   cl.integer("threads", "N", "threads (only 1: every figure is single-core)", &threads, 1, 1);
   cl.integer("frames", "N", "frames to render or load (default 340)", &frame_count, 2, 100000);
+  cl.integer("features", "N", "LK features (default: epitrack-solve's)", &to.max_features, 8,
+             100000);
   cl.real("focal", "PX", "the given focal for an INPUT (default: the rendered clip's 600)", &focal,
           1.0, 1e6);
   if (const auto r = cl.parse(argc, argv); r != tools::CommandLine::Result::kOk)

@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   // level plane with a tenth of the wall's support as the ground.
   o.scene.ground_min_ratio = 0.1;
   o.scene.min_plane_fraction = 0.05;
+  o.tracker.max_features = epitrack::tools::kSolveFeatures;
   std::string distortion = "none";
   bool quiet = false;
   CommandLine cl(
@@ -91,8 +92,10 @@ int main(int argc, char** argv) {
   cl.integer("match-window", "N",
              "descriptor matcher: previous frames each frame is matched against (default 2)",
              &o.matching.window, 1, 50);
-  cl.integer("features", "N", "2D features tracked (default 300)", &o.tracker.max_features, 8,
-             100000);
+  cl.integer("features", "N",
+             "2D features tracked (default " + std::to_string(epitrack::tools::kSolveFeatures) +
+                 "; epitrack-track and the device: 300)",
+             &o.tracker.max_features, 8, 100000);
   cl.integer("window", "PX", "LK window side, odd (default 21)", &o.tracker.window, 3, 99);
   cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.tracker.levels, 0, 7);
   cl.real("keyframe-parallax", "DEG", "median parallax that makes a new keyframe (default 2)",

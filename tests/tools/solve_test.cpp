@@ -163,7 +163,8 @@ TEST_CASE("epitrack-solve --tracks solves given 2D tracks instead of tracking", 
   const std::string tracks = dir.file("tracks.csv");
   writeText(tracks, landmarksAsTracksCsv(clip + "/landmarks.txt", 40));
 
-  SECTION("the true projections give the true cameras and focal") {
+  // One clip for every check (Catch2 would render it again for each SECTION).
+  {  // the true projections give the true cameras and focal
     const std::string out = dir.file("out");
     REQUIRE(run(exe + " " + clip + "/frames --out " + out + " --tracks " + tracks + " --quiet") ==
             0);
@@ -180,7 +181,7 @@ TEST_CASE("epitrack-solve --tracks solves given 2D tracks instead of tracking", 
     CHECK(m.ate_rmse_rel < 1e-6);
     CHECK(m.rot_err_deg_mean < 1e-3);
   }
-  SECTION("epitrack-track's tracks solve as the solve's own tracking does") {
+  {  // epitrack-track's tracks solve as the solve's own tracking does
     const std::string own = dir.file("own"), given = dir.file("given");
     const std::string csv = dir.file("lk.csv");
     REQUIRE(run(binaryPath("tools/track/epitrack-track") + " " + clip + "/frames --out " + csv +
@@ -197,7 +198,7 @@ TEST_CASE("epitrack-solve --tracks solves given 2D tracks instead of tracking", 
     // tracks.csv keeps 1/1000 px: the same solve to within that rounding.
     CHECK(std::abs(a.ate_rmse_rel - b.ate_rmse_rel) < 0.1 * a.ate_rmse_rel + 1e-6);
   }
-  SECTION("unusable tracks are refused before anything is written") {
+  {  // unusable tracks are refused before anything is written
     const std::string bad = dir.file("bad.csv");
     writeText(bad, "frame,track_id,x,y\n0,1,10.0,20.0\n40,1,11.0,21.0\n");  // clip: frames 0-39
     CHECK(run(exe + " " + clip + "/frames --out " + dir.file("o1") + " --tracks " + bad +

@@ -71,8 +71,8 @@ void checkLiveAgainstOffline(const std::string& synth_args, std::size_t max_init
   // default tracks twice as many (tools::kSolveFeatures); the README gives both ratios.
   const std::string out = dir.file("solve");
   REQUIRE(run(binaryPath("tools/solve/epitrack-solve") + " " + clip + "/frames --out " + out +
-              " --intrinsics " + clip + "/intrinsics.txt --features 300 --render none --quiet") ==
-          0);
+              " --intrinsics " + clip + "/intrinsics.txt" +
+              epitrack::test::liveFeatureBudgetOption() + " --render none --quiet") == 0);
   std::vector<epitrack::hal::TrajectoryEntry> offline_est;
   REQUIRE(epitrack::hal::readTrajectoryFile(out + "/cameras.tum", offline_est, error));
   const auto offline = evaluate(gt, offline_est);

@@ -15,8 +15,17 @@
 #include <unistd.h>
 
 #include "algo/image/image.hpp"
+#include "algo/tracking/feature_tracker.hpp"
 
 namespace epitrack::test {
+
+/// epitrack-solve's option for the live tracker's feature budget (FeatureTrackerOptions'
+/// max_features, 300; the solve's own default is twice that, tools::kSolveFeatures). For tests of
+/// the command's behaviour rather than its accuracy, and for comparisons with the device: about
+/// half the solve's time, under ASan too.
+inline std::string liveFeatureBudgetOption() {
+  return " --features " + std::to_string(FeatureTrackerOptions{}.max_features);
+}
 
 /// A fresh directory under $TMPDIR (or /tmp), removed when the object dies unless
 /// EPITRACK_KEEP_TEST_FILES is set.

@@ -165,9 +165,8 @@ TEST_CASE("Corrupt JPEG frames in an MJPEG clip are skipped and counted, the res
   }
   const std::string path = dir.file("clip.mjpeg");
   REQUIRE(epitrack::hal::writeFileAtomic(path, mjpeg.data(), mjpeg.size(), error));
-  // The frames' handling is tested here, not the solve: the live tracker's 300 features halve the
-  // time under ASan against epitrack-solve's default 600 (as in the size-change test below).
-  const Outcome o = solve(dir, path, "--focal 280 --features 300");
+  // The frames' handling is tested here, not the solve (as in the size-change test below).
+  const Outcome o = solve(dir, path, "--focal 280" + epitrack::test::liveFeatureBudgetOption());
   CHECK(o.exit_code == 0);
   CHECK(o.status == "ok");
   CHECK(jsonNumber(o.summary, "frames") == 75);
@@ -187,7 +186,8 @@ TEST_CASE("A size change mid-stream solves the frames before it and says why it 
   REQUIRE(epitrack::hal::readFileInto(frameName(other + "/frames", 0), bytes, error));
   REQUIRE(epitrack::hal::writeFileAtomic(frameName(clip + "/frames", 60), bytes.data(),
                                          bytes.size(), error));
-  const Outcome o = solve(dir, clip + "/frames", "--focal 280 --features 300");
+  const Outcome o =
+      solve(dir, clip + "/frames", "--focal 280" + epitrack::test::liveFeatureBudgetOption());
   CHECK(o.exit_code == 1);
   CHECK(o.status == "ok");
   CHECK(jsonNumber(o.summary, "frames") == 60);

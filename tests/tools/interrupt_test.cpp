@@ -162,10 +162,6 @@ int interruptAfterFrames(SpawnedCommand& command, const Y4mClip& clip, int frame
   return command.wait();
 }
 
-// These tests are about the signal handling, not the solve: the live tracker's 300 features halve
-// the solve's time (under ASan too) against epitrack-solve's default 600.
-constexpr const char* kSolveFeatures = " --features 300";
-
 }  // namespace
 
 TEST_CASE("SIGINT while epitrack-solve tracks leaves only a summary.json saying so",
@@ -174,7 +170,7 @@ TEST_CASE("SIGINT while epitrack-solve tracks leaves only a summary.json saying 
   TempDir dir("interrupt-solve");
   const std::string out = dir.file("solve");
   SpawnedCommand solve(binaryPath("tools/solve/epitrack-solve") + " - --out " + shellQuote(out) +
-                           kSolveFeatures + " --quiet",
+                           epitrack::test::liveFeatureBudgetOption() + " --quiet",
                        dir.file("stderr.txt"));
   constexpr int kFramesSent = 30;
   const int exit_code = interruptAfterFrames(solve, clip, kFramesSent, SIGINT);
@@ -211,7 +207,8 @@ TEST_CASE("SIGTERM while epitrack-solve solves or renders leaves consistent outp
       TempDir dir("interrupt-solve2");
       const std::string out = dir.file("solve");
       SpawnedCommand solve(binaryPath("tools/solve/epitrack-solve") + " - --out " +
-                               shellQuote(out) + kSolveFeatures + " --render cube",
+                               shellQuote(out) + epitrack::test::liveFeatureBudgetOption() +
+                               " --render cube",
                            dir.file("stderr.txt"));
       REQUIRE(solve.started());
       REQUIRE(solve.writeInput(clip.header.data(), clip.header.size()));

@@ -9,11 +9,12 @@
 
 // epitrack-solve end to end on rendered synthetic clips: tracking, solve, exports, rendering.
 // The orbit, handheld and --tracks cases run the default 600 features; --refine-focal and the dolly
-// test an option and a motion, at the live tracker's 300 features and 480x360 (under ASan the
-// rendering of a 704x576 clip and the 600-feature solve take minutes).
+// test an option and a motion, at the live tracker's budget (liveFeatureBudgetOption) and 480x360
+// (under ASan the rendering of a 704x576 clip and the 600-feature solve take minutes).
 
 using epitrack::test::binaryPath;
 using epitrack::test::jsonNumber;
+using epitrack::test::liveFeatureBudgetOption;
 using epitrack::test::readWholeFile;
 using epitrack::test::run;
 using epitrack::test::TempDir;
@@ -85,8 +86,8 @@ TEST_CASE("epitrack-solve --refine-focal starts from a given focal 3 % off and r
   CHECK(run(exe + " " + clip + "/frames --out " + dir.file("bad") +
             " --refine-focal --quiet 2>/dev/null") == 2);
   const std::string out = dir.file("out");
-  REQUIRE(run(exe + " " + clip + "/frames --out " + out +
-              " --focal 433 --refine-focal --features 300 --quiet") == 0);
+  REQUIRE(run(exe + " " + clip + "/frames --out " + out + " --focal 433 --refine-focal" +
+              liveFeatureBudgetOption() + " --quiet") == 0);
   const std::string summary = readWholeFile(out + "/summary.json");
   INFO(summary.substr(0, 600));
   CHECK(summary.find("\"focal_source\": \"given\"") != std::string::npos);
@@ -109,7 +110,7 @@ TEST_CASE("epitrack-solve solves a short forward dolly", "[solve][cli]") {
               " 2>/dev/null") == 0);
   const std::string out = dir.file("out");
   REQUIRE(run(binaryPath("tools/solve/epitrack-solve") + " " + clip + "/frames --out " + out +
-              " --focal 420 --features 300 --quiet") == 0);
+              " --focal 420" + liveFeatureBudgetOption() + " --quiet") == 0);
   const auto m = evaluate(clip + "/groundtruth.txt", out + "/cameras.tum");
   INFO("ate_rmse_rel " << m.ate_rmse_rel * 100 << " % rot " << m.rot_err_deg_mean << " deg");
   CHECK(m.matched_frames == 120);

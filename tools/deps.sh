@@ -45,5 +45,7 @@ if [ ${#missing[@]} -eq 0 ] && [ -z "${need_update:-}" ]; then exit 0; fi
 if [ ${#missing[@]} -eq 0 ]; then exit 0; fi
 echo "deps.sh: installing ${missing[*]}" >&2
 export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -qq >&2
-"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+# Wait for another apt or dpkg run (a parallel build, an unattended upgrade) instead of failing.
+lock_wait=(-o DPkg::Lock::Timeout=900)
+"${sudo_cmd[@]}" apt-get "${lock_wait[@]}" update -qq >&2
+"${sudo_cmd[@]}" apt-get "${lock_wait[@]}" install -y -qq --no-install-recommends "${missing[@]}" >&2

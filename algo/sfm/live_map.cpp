@@ -32,6 +32,28 @@ const char* toString(LiveStatus s) {
   return "unknown";
 }
 
+const char* toString(LiveInitStage s) {
+  switch (s) {
+    case LiveInitStage::kNone:
+      return "none";
+    case LiveInitStage::kCalibrating:
+      return "calibrating-focal";
+    case LiveInitStage::kNewReference:
+      return "new-reference";
+    case LiveInitStage::kTooFewTracks:
+      return "too-few-tracks";
+    case LiveInitStage::kTooLittleMotion:
+      return "too-little-motion";
+    case LiveInitStage::kNoTwoViewGeometry:
+      return "no-two-view-geometry";
+    case LiveInitStage::kTooFewPoints:
+      return "too-few-points";
+    case LiveInitStage::kTooLittleParallax:
+      return "too-little-parallax";
+  }
+  return "unknown";
+}
+
 LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsics)
     : options_(options),
       K_(intrinsics),
@@ -200,9 +222,13 @@ void LiveMap::mergeTracks(std::span<const TrackedFeature> features) {
 LiveFrameResult LiveMap::process(std::span<const TrackedFeature> features) {
   LiveFrameResult result;
   mergeTracks(features);
+  result.init.tracks_alive = record_count_;
   if (state_ == State::kCalibrating) {
     result.status = LiveStatus::kInitializing;
+    result.init.stage = LiveInitStage::kCalibrating;
     result.calibrated = calibrateStep();
+    result.init.pairs = static_cast<int>(
+        std::min<int64_t>(calib_pairs_total_, static_cast<int64_t>(options_.calib_max_pairs)));
     if (result.calibrated) state_ = State::kInitializing;  // the map starts from the next frame
   } else if (state_ == State::kInitializing) {
     result.status = LiveStatus::kInitializing;
@@ -210,6 +236,7 @@ LiveFrameResult LiveMap::process(std::span<const TrackedFeature> features) {
       state_ = State::kTracking;
       result.status = LiveStatus::kTracking;
       result.initialized = true;
+      result.init.stage = LiveInitStage::kNone;
     }
   } else if (trackFrame(result)) {
     result.status = LiveStatus::kTracking;
@@ -335,10 +362,14 @@ bool LiveMap::calibrateStep() {
 // Initialisation from two views (paper §5.1-5.3).
 
 bool LiveMap::tryInitialize(LiveFrameResult& result) {
+  LiveInitProgress& progress = result.init;
   if (ref_frame_ < 0 || frame_ - ref_frame_ > options_.init_max_gap) {
     setReference();
+    progress.stage = LiveInitStage::kNewReference;
+    progress.reference_frame = ref_frame_;
     return false;
   }
+  progress.reference_frame = ref_frame_;
   int common = 0;
   for (int i = 0; i < record_count_; ++i) {
     const auto& r = records_[static_cast<std::size_t>(i)];
@@ -354,12 +385,18 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
     ++common;
   }
   result.map_matches = 0;
+  progress.common_tracks = common;
   if (common < options_.init_min_tracks) {
+    // The reference faded out: this frame becomes the new one.
     setReference();
+    progress.stage = LiveInitStage::kTooFewTracks;
     return false;
   }
   const double disp = median(std::span<double>(scratch_.data(), static_cast<std::size_t>(common)));
+  progress.displacement_px = disp;
+  progress.stage = LiveInitStage::kTooLittleMotion;
   if (disp < options_.init_min_displacement * K_.width) return false;
+  progress.stage = LiveInitStage::kNoTwoViewGeometry;
 
   const auto nc = static_cast<std::size_t>(common);
   const std::span<const Eigen::Vector2d> x1(x1_.data(), nc), x2(x2_.data(), nc);
@@ -394,9 +431,13 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
     scratch_[static_cast<std::size_t>(good)] = t.parallax_deg;
     ++good;
   }
+  progress.points = good;
+  progress.stage = LiveInitStage::kTooFewPoints;
   if (good < options_.init_min_points) return false;
   const double med_parallax =
       median(std::span<double>(scratch_.data(), static_cast<std::size_t>(good)));
+  progress.parallax_deg = med_parallax;
+  progress.stage = LiveInitStage::kTooLittleParallax;
   if (med_parallax < options_.init_min_parallax_deg) return false;
 
   // Accept: keyframe A is the reference (identity), keyframe B this frame.

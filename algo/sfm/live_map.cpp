@@ -5,19 +5,15 @@
 
 #include "algo/core/assert.hpp"
 #include "algo/geometry/triangulation.hpp"
+#include "algo/math/median.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
+#include "algo/sfm/reprojection.hpp"
 
 namespace epitrack {
 
 namespace {
 constexpr double kRadToDeg = 57.29577951308232;
 
-BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
-PoseCw fromBa(const BaCamera& c) {
-  PoseCw p;
-  p.R_cw = c.R_cw;
-  p.t_cw = c.t_cw;
-  return p;
-}
 }  // namespace
 
 const char* toString(LiveStatus s) {
@@ -169,12 +165,7 @@ LiveMap::KeyframeObservation* LiveMap::keyframeObservations(int64_t seq) {
                   static_cast<std::size_t>(options_.max_features)];
 }
 
-double LiveMap::median(std::span<double> values) {
-  if (values.empty()) return 0.0;
-  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
-}
+double LiveMap::median(std::span<double> values) { return upperMedian(values); }
 
 // ---------------------------------------------------------------------------------------------
 // Track bookkeeping: the tracker's ids only grow and a lost id never returns, so the records stay
@@ -546,22 +537,22 @@ void LiveMap::robustRefine(std::size_t matches, PnpResult& pr) {
   int n = 0;
   for (std::size_t j = 0; j < matches; ++j) {
     if (!pr.mask[j]) continue;
-    const Eigen::Vector3d pc = pr.pose.toCamera(X_[j]);
-    if (!(pc.z() > 0.0)) continue;
-    scratch_[static_cast<std::size_t>(n++)] = (pc.hnormalized() - n1_[j]).norm() * K_.fx;
+    double e = 0.0;
+    if (!reprojectionErrorPx(pr.pose, X_[j], n1_[j], K_.fx, e)) continue;
+    scratch_[static_cast<std::size_t>(n++)] = e;
   }
   if (n < options_.min_pnp_inliers) return;
-  const double sigma =
-      median(std::span<double>(scratch_.data(), static_cast<std::size_t>(n))) / 1.1774;
+  const double sigma = median(std::span<double>(scratch_.data(), static_cast<std::size_t>(n))) /
+                       kRayleighMedianPerSigma;
   robust_sigma_px_ = robust_sigma_px_ > 0.0 ? 0.8 * robust_sigma_px_ + 0.2 * sigma : sigma;
   const double cut =
       std::min(options_.reproj_threshold_px,
                std::max(options_.min_outlier_px, options_.outlier_sigmas * robust_sigma_px_));
   int kept = 0;
   for (std::size_t j = 0; j < matches; ++j) {
-    const Eigen::Vector3d pc = pr.pose.toCamera(X_[j]);
+    double e = 0.0;
     const bool keep =
-        pr.mask[j] && pc.z() > 0.0 && (pc.hnormalized() - n1_[j]).norm() * K_.fx <= cut;
+        pr.mask[j] && reprojectionErrorPx(pr.pose, X_[j], n1_[j], K_.fx, e) && e <= cut;
     robust_mask_[j] = keep ? 1 : 0;
     kept += keep ? 1 : 0;
   }

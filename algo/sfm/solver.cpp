@@ -15,7 +15,10 @@
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/math/median.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
+#include "algo/sfm/reprojection.hpp"
 
 namespace epitrack {
 
@@ -107,20 +110,8 @@ double displacement(const std::vector<Eigen::Vector2d>& a, const std::vector<Eig
   return *it;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
-PoseCw fromBa(const BaCamera& c) {
-  PoseCw p;
-  p.R_cw = c.R_cw;
-  p.t_cw = c.t_cw;
-  return p;
-}
+// The upper median of a copy (the callers' vectors are theirs to keep).
+double median(std::vector<double> v) { return upperMedian(v); }
 
 }  // namespace
 
@@ -387,9 +378,10 @@ double Solver::medianReprojectionAll() const {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      e.push_back(pc.z() > 0.0 ? (pc.hnormalized() - normalized(o)).norm() * f_
-                               : std::numeric_limits<double>::infinity());
+      double error = 0.0;  // +inf behind the camera
+      reprojectionErrorPx(fr.pose, points_[static_cast<std::size_t>(p)].X, normalized(o), f_,
+                          error);
+      e.push_back(error);
     }
   }
   return e.empty() ? std::numeric_limits<double>::infinity() : median(std::move(e));
@@ -619,8 +611,8 @@ bool Solver::registerFrame(int f, int min_inliers, double min_inlier_ratio) {
     std::vector<uint8_t> keep(X.size(), 0);
     int kept = 0;
     for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = r.pose.toCamera(X[i]);
-      if (pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= robust_cut_px_) {
+      double e = 0.0;
+      if (reprojectionErrorPx(r.pose, X[i], x[i], f_, e) && e <= robust_cut_px_) {
         keep[i] = 1;
         ++kept;
       }
@@ -763,10 +755,10 @@ void Solver::adjust(bool global) {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
-      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
-          points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(frames_[static_cast<std::size_t>(f)].pose,
+                               points_[static_cast<std::size_t>(p)].X, normalized(o), f_, e))
+        continue;
       int c = cam_of_frame[static_cast<std::size_t>(f)];
       if (c < 0) {
         c = static_cast<int>(cams.size());
@@ -786,7 +778,7 @@ void Solver::adjust(bool global) {
     // adjustments keep the fixed cut: a young map's residuals are not yet representative.
     std::vector<double> e(candidates.size());
     for (std::size_t i = 0; i < candidates.size(); ++i) e[i] = candidates[i].residual;
-    const double sigma = median(std::move(e)) / 1.1774;
+    const double sigma = median(std::move(e)) / kRayleighMedianPerSigma;
     cut = std::min(cut, std::max(options_.min_outlier_px, options_.outlier_sigmas * sigma));
     if (options_.huber_sigmas > 0.0)
       huber = std::min(options_.huber_px,
@@ -989,9 +981,8 @@ void Solver::computeErrors() {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
       auto& mp = points_[static_cast<std::size_t>(p)];
-      const Eigen::Vector3d pc = fr.pose.toCamera(mp.X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(fr.pose, mp.X, normalized(o), f_, e)) continue;
       if (e > options_.reproj_threshold_px) continue;
       sum += e * e;
       ++count;
@@ -1013,9 +1004,10 @@ void Solver::reprojectionStats(double& mean_px, double& median_px) const {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double v = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double v = 0.0;
+      if (!reprojectionErrorPx(fr.pose, points_[static_cast<std::size_t>(p)].X, normalized(o), f_,
+                               v))
+        continue;
       if (v <= options_.reproj_threshold_px) e.push_back(v);
     }
   }
@@ -1162,8 +1154,8 @@ bool Solver::registerByRelativePose(int f, int reference) {
   const auto inliersFor = [&](const PoseCw& candidate, std::vector<uint8_t>* keep) {
     int n = 0;
     for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = candidate.toCamera(X[i]);
-      const bool in = pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= t_px;
+      double error = 0.0;
+      const bool in = reprojectionErrorPx(candidate, X[i], x[i], f_, error) && error <= t_px;
       n += in ? 1 : 0;
       if (keep != nullptr) (*keep)[i] = in ? 1 : 0;
     }

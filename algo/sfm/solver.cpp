@@ -22,7 +22,7 @@
 
 namespace epitrack {
 
-const char* toString(Solver::Status s) {
+const char* toString(SolverStatus s) {
   switch (s) {
     case Solver::Status::kOk:
       return "ok";
@@ -38,6 +38,44 @@ const char* toString(Solver::Status s) {
       return "initialization-failed";
     case Solver::Status::kPartial:
       return "partial";
+  }
+  return "unknown";
+}
+
+const char* toString(MotionClass m) {
+  switch (m) {
+    case MotionClass::kGeneral:
+      return "general";
+    case MotionClass::kRotationOrPlane:
+      return "rotation-or-plane";
+    case MotionClass::kRotationOnly:
+      return "rotation-only";
+  }
+  return "unknown";
+}
+
+const char* toString(FocalSource s) {
+  switch (s) {
+    case FocalSource::kGiven:
+      return "given";
+    case FocalSource::kSelfCalibrated:
+      return "self-calibrated";
+    case FocalSource::kFallback:
+      return "fallback";
+  }
+  return "unknown";
+}
+
+const char* toString(FocalFallback f) {
+  switch (f) {
+    case FocalFallback::kNone:
+      return "";
+    case FocalFallback::kProfile:
+      return "profile";
+    case FocalFallback::kProfileFlat:
+      return "profile-flat";
+    case FocalFallback::kFieldOfView:
+      return "field-of-view";
   }
   return "unknown";
 }
@@ -155,6 +193,33 @@ int Solver::commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
   return n;
 }
 
+void Solver::calibrateAsGiven() {
+  f_ = options_.focal_px;
+  focal_source_ = FocalSource::kGiven;
+  focal_observable_ = true;
+}
+
+SolverSummary Solver::summary() const {
+  SolverSummary s;
+  s.status = status_;
+  s.message = message_;
+  s.focal_px = f_;
+  s.aspect = aspect_;
+  s.cx = cx_;
+  s.cy = cy_;
+  s.k1 = k1_;
+  s.k2 = k2_;
+  s.focal_source = focal_source_;
+  s.focal_observable = focal_observable_;
+  s.focal_fallback = focal_fallback_;
+  s.motion = motion_;
+  s.frames = tracks_.frameCount();
+  s.solved_frames = solvedFrames();
+  s.initial_pair_a = init_a_;
+  s.initial_pair_b = init_b_;
+  return s;
+}
+
 int Solver::solvedFrames() const {
   int n = 0;
   for (const auto& f : frames_) n += f.solved ? 1 : 0;
@@ -240,11 +305,11 @@ bool Solver::calibrate() {
     return false;
   }
   if (!pair_focals_.empty() && homography_pairs * 10 >= static_cast<int>(pair_focals_.size()) * 8)
-    motion_ = "rotation-or-plane";
+    motion_ = MotionClass::kRotationOrPlane;
 
   if (options_.focal_px > 0.0) {
     f_ = options_.focal_px;
-    focal_source_ = "given";
+    focal_source_ = FocalSource::kGiven;
     focal_observable_ = true;
     return true;
   }
@@ -258,13 +323,13 @@ bool Solver::calibrate() {
   }
   if (r.observable) {
     f_ = r.focal_px;
-    focal_source_ = "self-calibrated";
+    focal_source_ = FocalSource::kSelfCalibrated;
     focal_observable_ = true;
   } else {
     f_ = options_.fallback_focal_widths * std::max(width_, height_);
-    focal_source_ = "fallback";
+    focal_source_ = FocalSource::kFallback;
     focal_observable_ = false;
-    focal_fallback_ = "field-of-view";
+    focal_fallback_ = FocalFallback::kFieldOfView;
     sweep_pending_ = options_.focal_sweep;
   }
   return true;
@@ -289,13 +354,11 @@ FocalProfilePoint Solver::probeFocal(const TrackTable& tracks, double focal, boo
   p.refined = refine;
   // The calibration stage's checks passed on the whole clip and its pairs only serve the focal
   // and the motion class (general, or the sweep would not run): start at the initial pair.
-  probe.f_ = focal;
-  probe.focal_source_ = "given";
-  probe.focal_observable_ = true;
+  probe.calibrateAsGiven();
   if (probe.initialize() && probe.registerFrames() && probe.finalize()) {
     p.solved_frames = probe.solvedFrames();
     p.median_reproj_px = probe.medianReprojectionAll();
-    p.focal_px = probe.focal();
+    p.focal_px = probe.summary().focal_px;
   }
   return p;
 }
@@ -366,7 +429,7 @@ void Solver::sweepFocal() {
   // Clear: 10 % either way costs at least 5 % of median error.
   const bool clear =
       score(lo) >= 1.05 * score(profile_[best]) && score(hi) >= 1.05 * score(profile_[best]);
-  focal_fallback_ = clear ? "profile" : "profile-flat";
+  focal_fallback_ = clear ? FocalFallback::kProfile : FocalFallback::kProfileFlat;
   refine_fallback_focal_ = clear;
 }
 
@@ -465,7 +528,7 @@ bool Solver::initialize() {
   // only when no pair has parallax is the clip solved as a tripod.
   bool rotation_coherent = false;
   double rotation_focal = 0.0;
-  if (motion_ == "rotation-or-plane" && !homographies_.empty()) {
+  if (motion_ == MotionClass::kRotationOrPlane && !homographies_.empty()) {
     std::vector<double> fs;
     for (const auto& H : homographies_) {
       const auto e = estimateFocalFromRotation(H, width_, height_);
@@ -479,14 +542,14 @@ bool Solver::initialize() {
     rotation_coherent = coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits;
     if (rotation_coherent && options_.focal_px <= 0.0 && !focal_observable_) {
       f_ = rotation_focal;
-      focal_source_ = "self-calibrated";
+      focal_source_ = FocalSource::kSelfCalibrated;
       focal_observable_ = true;
     }
   }
   // Homographies that are not rotations: a single plane (or a scene so distant it acts as one).
   // Any focal then explains the views equally well (paper §5.2 needs F), so a solve with a guessed
   // focal would be silently distorted: say so instead.
-  if (motion_ == "rotation-or-plane" && !rotation_coherent && options_.focal_px <= 0.0 &&
+  if (motion_ == MotionClass::kRotationOrPlane && !rotation_coherent && options_.focal_px <= 0.0 &&
       !focal_observable_) {
     status_ = Status::kPlanarScene;
     message_ =
@@ -555,14 +618,14 @@ bool Solver::initialize() {
     return false;
   }
   if (best_score <= 0.0) {
-    status_ = motion_ == "rotation-or-plane" ? Status::kPlanarScene : Status::kInitFailed;
+    status_ = motion_ == MotionClass::kRotationOrPlane ? Status::kPlanarScene : Status::kInitFailed;
     message_ = status_ == Status::kPlanarScene
                    ? "the frames are related by homographies (a single plane without a given "
                      "focal, or no translation): no 3D reconstruction"
                    : "no pair of frames gave a valid two-view reconstruction";
     return false;
   }
-  motion_ = "general";
+  motion_ = MotionClass::kGeneral;
   auto& fa = frames_[static_cast<std::size_t>(init_a_)];
   auto& fb = frames_[static_cast<std::size_t>(init_b_)];
   fa.solved = fb.solved = true;
@@ -808,9 +871,10 @@ void Solver::adjust(bool global) {
   // 340-frame orbit the figures are equal to 5 digits and the final adjustments take 0.28 s
   // instead of 0.59 (the default 1e-10 ran all 30 iterations).
   if (global) bo.function_tolerance = 1e-6;
-  bo.refine_focal = global && ((focal_source_ == "self-calibrated") ||
-                               (focal_source_ == "given" && options_.refine_given_focal) ||
-                               (focal_source_ == "fallback" && refine_fallback_focal_));
+  bo.refine_focal =
+      global && ((focal_source_ == FocalSource::kSelfCalibrated) ||
+                 (focal_source_ == FocalSource::kGiven && options_.refine_given_focal) ||
+                 (focal_source_ == FocalSource::kFallback && refine_fallback_focal_));
   bo.refine_distortion = global ? options_.refine_distortion : 0;
   BaIntrinsics k{f_, aspect_, cx_, cy_, k1_, k2_};
   ba.solve(cams, cam_fixed, pts, {}, obs, k, bo);
@@ -1032,7 +1096,7 @@ bool Solver::tripodSolve() {
     }
     if (fs.empty()) return false;
     f_ = median(fs);
-    focal_source_ = "self-calibrated";
+    focal_source_ = FocalSource::kSelfCalibrated;
     focal_observable_ = true;
   }
   Eigen::Matrix3d K;
@@ -1079,7 +1143,7 @@ bool Solver::tripodSolve() {
     ++solved;
   }
   tripod_ = true;
-  motion_ = "rotation-only";
+  motion_ = MotionClass::kRotationOnly;
   status_ = Status::kRotationOnly;
   message_ = "the camera only rotates (tripod): rotation and focal solved, depth unknown";
   assessCoverage();

@@ -197,6 +197,10 @@ struct SolverSummary {
 /// adjustment over keyframes with the focal and distortion when requested, then every frame's
 /// pose refined on the final map). A pure rotation ends in a tripod solve (rotation and focal;
 /// depth unknown). Each stage returns false when the solve cannot go on; `status()` says why.
+///
+/// Sources by concern: solver.cpp (the four stages, adjustment, triangulation),
+/// solver_focal_profile.cpp (focal profile), solver_tripod.cpp (tripod solve),
+/// solver_keyframes.cpp (key-frame mode), solver_coverage.cpp (unsolved causes, partial status).
 class Solver {
  public:
   using Status = SolverStatus;

@@ -446,7 +446,12 @@ bool Solver::initialize() {
     if (t < 4 && widest > 0 && widest != last_tried && widest_d >= 0.02 * width_) consider(widest);
   }
   if (best_score <= 0.0 && rotation_coherent) {
-    tripodSolve();
+    if (!tripodSolve()) {  // its result was ignored: a failed tripod solve stayed "ok"
+      status_ = Status::kInitFailed;
+      message_ =
+          "the frames are related by rotations, but the tripod solve found no focal or no frame "
+          "with 8 tracks";
+    }
     return false;
   }
   if (best_score <= 0.0) {

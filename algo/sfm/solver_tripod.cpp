@@ -40,11 +40,15 @@ bool Solver::tripodSolve() {
     max_obs = std::max(max_obs, static_cast<int>(tracks_.frame(f).size()));
   HomographyRansac hr(std::max(8, max_obs));
   std::vector<Eigen::Vector2d> x1, x2;
+  // The reference (identity rotation) is the first frame with enough tracks for a homography;
+  // frames before it have fewer and stay unsolved. (It was frame 0 whatever its tracks: a dead
+  // store computed its solved flag and the loop then set it.)
   int ref = 0;
+  while (ref < n && tracks_.frame(ref).size() < 8) ++ref;
+  if (ref == n) return false;
   Eigen::Matrix3d R_ref = Eigen::Matrix3d::Identity();  // R_cw of the reference frame
-  frames_[0].solved = tracks_.frame(0).size() >= 8;
   int solved = 0;
-  for (int f = 0; f < n; ++f) {
+  for (int f = ref; f < n; ++f) {
     if (f == ref) {
       frames_[static_cast<std::size_t>(f)].solved = true;
       frames_[static_cast<std::size_t>(f)].pose.R_cw = R_ref;

@@ -325,3 +325,32 @@ TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[s
   CHECK(ranges[1].cause == UnsolvedCause::kNotConnected);
   CHECK(s.summary().message.find("views registered") != std::string::npos);
 }
+
+TEST_CASE("Tripod solve: a first frame with fewer than 8 tracks is not counted as solved",
+          "[sfm][solver]") {
+  // The pan clip with frame 0 cut to 5 tracks: the reference becomes frame 1.
+  Clip full;
+  makeClip(full, synth::SceneKind::kPan, 100, 0.0, 0.3);
+  TrackTable tracks;
+  tracks.reserve(100, full.tracks.observations().size());
+  for (int f = 0; f < 100; ++f) {
+    int kept = 0;
+    for (const auto& o : full.tracks.frame(f)) {
+      if (f == 0 && kept == 5) break;
+      tracks.add(f, full.tracks.trackId(o.track), o.x, o.y);
+      ++kept;
+    }
+  }
+  tracks.setFrameCount(100);
+  tracks.finalize();
+  SolverOptions o;
+  o.focal_px = 600.0;
+  Solver s(tracks, full.options.width, full.options.height, o);
+  REQUIRE(s.calibrate());
+  CHECK_FALSE(s.initialize());
+  CHECK(s.status() == Solver::Status::kRotationOnly);
+  CHECK_FALSE(s.frames()[0].solved);
+  CHECK(s.frames()[0].unsolved == UnsolvedCause::kTracksLost);
+  CHECK(s.solvedFrames() == 99);
+  CHECK(s.frames()[1].pose.R_cw.isApprox(Eigen::Matrix3d::Identity()));
+}

@@ -56,7 +56,7 @@ TEST_CASE("epitrack-solve solves a rendered orbit and writes every output", "[so
   CHECK(m.rot_err_deg_mean < 1.0);
 }
 
-TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli]") {
+TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli][slow]") {
   TempDir dir("solve-hh");
   const std::string clip = dir.file("hh");
   REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " --scene handheld --frames 150 --out " +

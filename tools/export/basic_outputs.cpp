@@ -163,6 +163,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("images", colmap.images);
   j.field("points", colmap.points);
   j.field("observations", colmap.observations);
+  j.field("mean_error_px", colmap.mean_error_px);
   j.endObject();
   j.key("seconds");
   j.beginObject();

@@ -88,6 +88,10 @@ ColmapTracks buildTracks(const Reconstruction& rec) {
   return t;
 }
 
+/// The ERROR column: the point's mean reprojection error over its inlier observations, 0 when
+/// unknown.
+double colmapError(const ScenePoint& p) { return std::isfinite(p.reproj_px) ? p.reproj_px : 0.0; }
+
 }  // namespace
 
 ColmapCounts colmapCounts(const Reconstruction& rec) {
@@ -100,7 +104,9 @@ ColmapCounts colmapCounts(const Reconstruction& rec) {
     if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
     n.points += 1;
     n.observations += static_cast<int64_t>(it->second.size());
+    n.mean_error_px += colmapError(p);
   }
+  if (n.points > 0) n.mean_error_px /= static_cast<double>(n.points);
   return n;
 }
 
@@ -204,7 +210,7 @@ std::string formatColmapPoints3D(const Reconstruction& rec) {
   for (const ScenePoint& p : rec.points) {
     const auto it = tracks.per_point.find(p.id);
     if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
-    const double err = std::isfinite(p.reproj_px) ? p.reproj_px : 0.0;
+    const double err = colmapError(p);
     std::snprintf(buf, sizeof(buf), "%lld %.12g %.12g %.12g %u %u %u %.6g",
                   static_cast<long long>(p.id), p.X.x(), p.X.y(), p.X.z(),
                   static_cast<unsigned>(p.gray), static_cast<unsigned>(p.gray),

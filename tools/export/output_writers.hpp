@@ -47,6 +47,7 @@ struct ColmapCounts {
   int64_t images = 0;
   int64_t points = 0;
   int64_t observations = 0;
+  double mean_error_px = 0.0;  ///< mean of the points' ERROR column ("Mean reprojection error")
 };
 ColmapCounts colmapCounts(const Reconstruction& rec);
 

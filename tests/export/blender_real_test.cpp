@@ -7,6 +7,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -222,4 +223,69 @@ TEST_CASE("Blender loads blender_camera.py and projects the points as cameras.tu
   CHECK(worst_distorted_px < 0.01);
   CHECK(worst_position < 1e-5);
   CHECK(worst_angle < 1e-5);
+}
+
+TEST_CASE("Blender's Nuke .chan importer puts camera.chan's camera where cameras.tum is",
+          "[export][blender][nuke][slow][no-asan]") {
+  if (et::run("command -v blender > /dev/null 2>&1") != 0) {
+    std::printf(
+        "EPITRACK-SKIP: blender not installed (tools/deps.sh clients), Blender itself not run\n");
+    return;
+  }
+  Reconstruction rec = et::makeReconstruction(12, 5);
+  rec.intrinsics.cx = 347.25;  // off-centre: what .chan cannot carry
+  rec.intrinsics.cy = 203.5;
+  et::TempDir dir("blender-chan");
+  std::string error;
+  ExportOptions options;
+  options.nuke_frame_offset = 1;  // Blender's importer keys frame = the .chan's frame
+  REQUIRE(writeAllOutputs(rec, dir.path(), options, error));
+  {
+    std::ofstream points(dir.file("points.txt"));
+    for (const auto& p : rec.points) points << p.X.x() << ' ' << p.X.y() << ' ' << p.X.z() << '\n';
+  }
+  const std::string probe = dir.file("probe.txt");
+  REQUIRE(et::run("blender -b --factory-startup --python-exit-code 1 --python '" +
+                  std::string(EPITRACK_SOURCE_DIR) + "/tests/export/blender_chan_probe.py' -- '" +
+                  probe + "' '" + dir.file("camera.chan") + "' 640 480 '" + dir.file("points.txt") +
+                  "' > '" + dir.file("blender.log") + "' 2>&1") == 0);
+  const BlenderReadBack b = readProbe(probe);
+  CameraIntrinsics k;
+  REQUIRE(epitrack::hal::readIntrinsicsFile(dir.file("intrinsics.txt"), k, error));
+  std::vector<epitrack::hal::TrajectoryEntry> tum;
+  REQUIRE(epitrack::hal::readTrajectoryFile(dir.file("cameras.tum"), tum, error));
+  REQUIRE(b.poses.size() == tum.size());
+  double worst_position = 0.0, worst_angle = 0.0, worst_centred_px = 0.0, worst_ours_px = 0.0;
+  for (const auto& pose : tum) {
+    const int bf = static_cast<int>(pose.t) + options.nuke_frame_offset;
+    REQUIRE(b.poses.count(bf) == 1);
+    const auto& [location, rotation] = b.poses.at(bf);
+    worst_position = std::max(worst_position, (location - pose.position).norm());
+    const Eigen::Quaterniond expected(pose.rotation.toRotationMatrix() *
+                                      Eigen::Vector3d(1, -1, -1).asDiagonal());
+    worst_angle = std::max(worst_angle, rotation.angularDistance(expected));
+    const auto& views = b.views.at(bf);
+    REQUIRE(views.size() == rec.points.size());
+    // .chan carries fy (as the vertical field of view) but no principal point: the imported
+    // camera is ours with the principal point at the centre, and off by the offset from ours.
+    CameraIntrinsics centred = k;
+    centred.cx = 0.5 * (k.width - 1);
+    centred.cy = 0.5 * (k.height - 1);
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      const Eigen::Vector2d blender(views[i].x() * k.width - 0.5,
+                                    (1.0 - views[i].y()) * k.height - 0.5);
+      worst_centred_px = std::max(
+          worst_centred_px, (blender - projectWith(centred, pose, rec.points[i].X, false)).norm());
+      worst_ours_px =
+          std::max(worst_ours_px, (blender - projectWith(k, pose, rec.points[i].X, false)).norm());
+    }
+  }
+  std::printf(
+      "Blender .chan import, %zu frames: camera position %.2e, rotation %.2e rad; projection vs "
+      "a centred camera %.2e px, vs ours (principal point (%.2f, %.2f)) %.1f px\n",
+      tum.size(), worst_position, worst_angle, worst_centred_px, k.cx, k.cy, worst_ours_px);
+  CHECK(worst_position < 1e-5);
+  CHECK(worst_angle < 1e-5);
+  CHECK(worst_centred_px < 0.01);
+  CHECK(worst_ours_px == Approx(std::hypot(347.25 - 319.5, 203.5 - 239.5)).margin(0.01));
 }

@@ -42,6 +42,7 @@ struct BlenderReadBack {
   double clip_focal = 0.0, clip_aspect = 0.0, clip_px = 0.0, clip_py = 0.0, clip_k1 = 0.0,
          clip_k2 = 0.0;
   int backgrounds = 0, show_backgrounds = 0;
+  std::map<int, double> plate_gray;  // Blender frame -> gray level of the rendered plate
   std::vector<Eigen::Vector3d> vertices;
   std::map<int, std::pair<Eigen::Vector3d, Eigen::Quaterniond>> poses;  // Blender frame -> pose
   std::map<int, std::vector<Eigen::Vector3d>> views;  // Blender frame -> (x, y, depth) per vertex
@@ -67,6 +68,11 @@ BlenderReadBack readProbe(const std::string& path) {
           b.clip_aspect >> b.clip_px >> b.clip_py >> b.clip_k1 >> b.clip_k2;
     } else if (what == "background") {
       f >> b.backgrounds >> b.show_backgrounds;
+    } else if (what == "plate") {
+      int frame = 0;
+      double gray = 0.0;
+      f >> frame >> gray;
+      b.plate_gray[frame] = gray;
     } else if (what == "vertex") {
       int i = 0;
       Eigen::Vector3d v;
@@ -120,7 +126,10 @@ TEST_CASE("Blender loads blender_camera.py and projects the points as cameras.tu
   std::string error;
   REQUIRE(et::run("mkdir -p '" + dir.file("frames") + "'") == 0);
   for (int i = 0; i < rec.frames; ++i) {
-    et::fillRandom(frame.view(), static_cast<uint32_t>(i + 1));
+    // Frame i is uniformly 10 + 20 i: the gray level tells which frame the plate shows.
+    for (int y = 0; y < frame.height(); ++y)
+      for (int x = 0; x < frame.width(); ++x)
+        frame.view()(x, y) = static_cast<uint8_t>(10 + 20 * i);
     char name[32];
     std::snprintf(name, sizeof(name), "%06d.jpg", i);
     REQUIRE(epitrack::hal::writeJpegGray(dir.file("frames/") + name, frame.constView(), 80, error));
@@ -134,8 +143,8 @@ TEST_CASE("Blender loads blender_camera.py and projects the points as cameras.tu
   REQUIRE(et::run("cd '" + dir.file("out") +
                   "' && blender -b --factory-startup --python-exit-code 1 --python "
                   "blender_camera.py --python '" +
-                  EPITRACK_SOURCE_DIR + "/tests/export/blender_probe.py' -- '" + probe + "' > '" +
-                  dir.file("blender.log") + "' 2>&1") == 0);
+                  EPITRACK_SOURCE_DIR + "/tests/export/blender_probe.py' -- '" + probe + "' '" +
+                  dir.path() + "' 1 8 12 > '" + dir.file("blender.log") + "' 2>&1") == 0);
   const BlenderReadBack b = readProbe(probe);
 
   // What the export says, read back from its own files.
@@ -168,6 +177,13 @@ TEST_CASE("Blender loads blender_camera.py and projects the points as cameras.tu
   CHECK(k.height - b.clip_py - 0.5 == Approx(k.cy).epsilon(1e-6));
   CHECK(b.clip_k1 == Approx(k.k1).epsilon(1e-6));
   CHECK(b.clip_k2 == Approx(k.k2).epsilon(1e-6));
+  // Blender frame f shows input frame f - 1 (gray 10 + 20 (f - 1); JPEG keeps a flat gray within
+  // a level or two).
+  REQUIRE(b.plate_gray.size() == 3);
+  for (const auto& [bf, gray] : b.plate_gray) {
+    INFO("Blender frame " << bf);
+    CHECK(std::abs(gray - (10.0 + 20.0 * (bf - 1))) < 3.0);
+  }
   const double lens_fx = b.clip_focal;
   const double lens_fy = b.clip_focal * b.clip_aspect;
   const double lens_cx = b.clip_px - 0.5;

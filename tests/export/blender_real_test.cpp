@@ -305,3 +305,39 @@ TEST_CASE("Blender's Nuke .chan importer puts camera.chan's camera where cameras
   CHECK(worst_centred_px < 0.01);
   CHECK(worst_ours_px == Approx(std::hypot(347.25 - 319.5, 203.5 - 239.5)).margin(0.01));
 }
+
+TEST_CASE("blender_camera.py builds the scene without a plate Blender cannot read",
+          "[export][blender][slow][no-asan]") {
+  if (et::run("command -v blender > /dev/null 2>&1") != 0) {
+    std::printf(
+        "EPITRACK-SKIP: blender not installed (tools/deps.sh clients), Blender itself not run\n");
+    return;
+  }
+  Reconstruction rec = et::makeReconstruction(6, 0);
+  et::TempDir dir("blender-pgm");
+  epitrack::Image<uint8_t> frame(rec.intrinsics.width, rec.intrinsics.height);
+  std::string error;
+  REQUIRE(et::run("mkdir -p '" + dir.file("frames") + "'") == 0);
+  for (int i = 0; i < rec.frames; ++i) {  // PGM: epitrack-synth's frames, not readable by Blender
+    et::fillRandom(frame.view(), static_cast<uint32_t>(i + 1));
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.pgm", i);
+    REQUIRE(epitrack::hal::writePgm(dir.file("frames/") + name, frame.constView(), error));
+    rec.frame_names.emplace_back(name);
+  }
+  rec.frames_dir = dir.file("frames");
+  REQUIRE(writeAllOutputs(rec, dir.file("out"), error));
+  const std::string probe = dir.file("probe.txt");
+  REQUIRE(et::run("cd '" + dir.file("out") +
+                  "' && blender -b --factory-startup --python-exit-code 1 --python "
+                  "blender_camera.py --python '" +
+                  EPITRACK_SOURCE_DIR + "/tests/export/blender_probe.py' -- '" + probe + "' > '" +
+                  dir.file("blender.log") + "' 2>&1") == 0);
+  const BlenderReadBack b = readProbe(probe);
+  CHECK_FALSE(b.have_clip);
+  CHECK(b.poses.size() == 6);
+  CHECK(b.vertices.size() == rec.points.size());
+  CHECK(
+      et::readWholeFile(dir.file("blender.log")).find("epitrack: no plate, Blender cannot read") !=
+      std::string::npos);
+}

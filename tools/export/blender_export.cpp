@@ -201,8 +201,9 @@ def build_plate(scene, camera):
     except RuntimeError as error:
         print("epitrack: no plate, Blender cannot load %s: %s" % (PLATE, error))
         return None
-    if clip.size[0] == 0:
-        print("epitrack: no plate, Blender cannot read %s" % PLATE)
+    # An unreadable file still gives a clip, with no frames and a placeholder size.
+    if clip.frame_duration == 0 or tuple(clip.size) != (WIDTH, HEIGHT):
+        print("epitrack: no plate, Blender cannot read %s as %dx%d frames" % (PLATE, WIDTH, HEIGHT))
         bpy.data.movieclips.remove(clip)
         return None
     clip.frame_start = FRAME_OFFSET  # the clip's first frame at the scene's first frame

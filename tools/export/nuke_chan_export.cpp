@@ -89,7 +89,12 @@ bool numberedSequence(const std::vector<std::string>& names, std::string& patter
     char expected[32];
     std::snprintf(expected, sizeof(expected), "%0*ld", static_cast<int>(width),
                   first + static_cast<long>(i));
-    if (names[i] != prefix + expected + suffix) return false;
+    const std::string& name = names[i];
+    if (name.size() != prefix.size() + width + suffix.size() ||
+        name.compare(0, prefix.size(), prefix) != 0 ||
+        name.compare(prefix.size(), width, expected) != 0 ||
+        name.compare(prefix.size() + width, std::string::npos, suffix) != 0)
+      return false;
   }
   last = first + static_cast<long>(names.size()) - 1;
   pattern = prefix + "%0" + std::to_string(width) + "d" + suffix;

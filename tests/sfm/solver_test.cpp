@@ -225,3 +225,103 @@ TEST_CASE("Too few features and no motion end with a status", "[sfm][solver]") {
   CHECK_FALSE(s2.calibrate());
   CHECK(s2.status() == Solver::Status::kNoMotion);
 }
+
+namespace {
+
+// An orbit whose tracks stop at `cut` (frames after it see nothing: a blank wall), or, with
+// `new_ids`, continue under new track ids (a cut to footage nothing links to the first part).
+void makeCutClip(Clip& c, int frames, int cut, bool new_ids) {
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, frames, 0.5, 0.3);
+  c.options = full.options;
+  c.gt = full.gt;
+  c.tracks.reserve(frames, full.tracks.observations().size());
+  for (int f = 0; f < frames; ++f) {
+    if (f >= cut && !new_ids) continue;
+    for (const auto& o : full.tracks.frame(f))
+      c.tracks.add(f, full.tracks.trackId(o.track) + (f >= cut ? 1000000 : 0), o.x, o.y);
+  }
+  c.tracks.setFrameCount(frames);
+  c.tracks.finalize();
+}
+
+}  // namespace
+
+TEST_CASE("A solve of half the frames is partial and says why the rest is unsolved",
+          "[sfm][solver]") {
+  for (const bool new_ids : {false, true}) {
+    Clip c;
+    makeCutClip(c, 120, 60, new_ids);
+    SolverOptions o;
+    o.focal_px = 600.0;
+    Solver s(c.tracks, c.options.width, c.options.height, o);
+    const bool ok = s.calibrate() && s.initialize() && s.registerFrames() && s.finalize();
+    INFO((new_ids ? "cut to unlinked tracks" : "blank second half") << ": " << s.message());
+    // The reconstruction itself succeeded: it is the coverage that is not ok.
+    CHECK(ok);
+    CHECK(s.status() == Solver::Status::kPartial);
+    CHECK(std::string(toString(s.status())) == "partial");
+    CHECK(s.solvedFrames() <= 60);
+    CHECK(s.solvedFrames() >= 55);
+    const auto ranges = frameRanges(s.frames());
+    REQUIRE(ranges.size() >= 2);
+    int covered = 0;
+    for (const auto& r : ranges) covered += r.last - r.first + 1;
+    CHECK(covered == 120);
+    CHECK(ranges.front().first == 0);
+    const FrameRange& tail = ranges.back();
+    CHECK_FALSE(tail.solved);
+    CHECK(tail.first == 60);
+    CHECK(tail.last == 119);
+    CHECK(tail.cause == (new_ids ? UnsolvedCause::kNotConnected : UnsolvedCause::kTracksLost));
+    CHECK(s.message().find("60-119") != std::string::npos);
+    CHECK(s.message().find(new_ids ? "not connected" : "tracks lost") != std::string::npos);
+    for (int f = 0; f < 120; ++f) {
+      const auto& fr = s.frames()[static_cast<std::size_t>(f)];
+      CHECK((fr.unsolved == UnsolvedCause::kNone) == fr.solved);
+    }
+  }
+}
+
+TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver]") {
+  // 114 of 120 frames have tracks: 95 %.
+  Clip c;
+  makeCutClip(c, 120, 114, false);
+  SolverOptions o;
+  o.focal_px = 600.0;
+  Solver s(c.tracks, c.options.width, c.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  CHECK(s.status() == Solver::Status::kOk);
+  CHECK(s.solvedFrames() == 114);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[0].solved);
+  CHECK(ranges[1].cause == UnsolvedCause::kTracksLost);
+}
+
+TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[sfm][solver]") {
+  // Every 4th frame of an orbit as a key-frame set; the last third under new track ids.
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, 120, 0.5, 0.3);
+  TrackTable views;
+  views.reserve(30, full.tracks.observations().size() / 4 + 1);
+  for (int v = 0; v < 30; ++v)
+    for (const auto& ob : full.tracks.frame(4 * v))
+      views.add(v, full.tracks.trackId(ob.track) + (v >= 20 ? 1000000 : 0), ob.x, ob.y);
+  views.setFrameCount(30);
+  views.finalize();
+  SolverOptions o;
+  o.focal_px = 600.0;
+  o.keyframe_collection = true;
+  Solver s(views, full.options.width, full.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  INFO(s.message());
+  CHECK(s.status() == Solver::Status::kPartial);
+  CHECK(s.solvedFrames() == 20);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[1].first == 20);
+  CHECK(ranges[1].last == 29);
+  CHECK(ranges[1].cause == UnsolvedCause::kNotConnected);
+  CHECK(s.message().find("views registered") != std::string::npos);
+}

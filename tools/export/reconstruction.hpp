@@ -78,6 +78,16 @@ struct FocalProfileEntry {
   int solved_frames = 0;
 };
 
+/// A run of consecutive frames, all solved or all unsolved for one cause (summary.json
+/// "solved_ranges" and "unsolved_ranges", the report's gaps).
+struct FrameRangeEntry {
+  int64_t first = 0;
+  int64_t last = 0;
+  bool solved = false;
+  std::string cause;   ///< unsolved: a short name ("tracks-lost", "too-little-parallax", ...)
+  std::string reason;  ///< unsolved: what the cause means, in a few words
+};
+
 /// Wall time per solver stage, in the order they ran, plus the total.
 struct StageSeconds {
   std::vector<std::pair<std::string, double>> stages;
@@ -101,8 +111,10 @@ struct Reconstruction {
   double focal_given_px = 0.0;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
-  std::string status = "ok";       ///< "ok" or the reason the solve failed
-  std::string message;             ///< optional human sentence about the status
+  /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see
+  /// frame_ranges), or the reason the solve failed.
+  std::string status = "ok";
+  std::string message;  ///< optional human sentence about the status
   /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",
   /// "SIGTERM"), the stage it stopped ("tracking", "calibration", ...) and, when the solve itself
   /// had finished, the solver's own status ("ok", "rotation-only", ...; empty otherwise).
@@ -118,6 +130,8 @@ struct Reconstruction {
   std::string focal_fallback;
   std::vector<FocalProfileEntry> focal_profile;
   StageSeconds seconds;
+  /// Solved and unsolved runs of frames in frame order (empty: not known; then not written).
+  std::vector<FrameRangeEntry> frame_ranges;
 
   /// Reprojection statistics. NaN: computed by the summary from the observation residuals, or
   /// failing those from the points' reproj_px.

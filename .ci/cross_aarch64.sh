@@ -17,17 +17,14 @@ cross=$root/build/cross-aarch64
 # (rendering clips with epitrack-synth under emulation takes about 0.5 s a frame, far too slow for
 # CI; in-process rendering, as in the allocation tests, is fine); the tracker's bit-exactness is
 # checked below on a clip rendered natively.
-# Also left out, for the 45-minute CI budget: five of the solver's whole-clip accuracy sweeps
-# (50-110 s each under qemu, 400 CPU seconds together); the solver still runs whole clips here in
-# "Orbit with the focal unknown" and "Pan (pure rotation)", and the sweeps run natively in the
-# test stage. Only the programs and the test binaries of these labels are built (the other test
+# Also left out, for the CI budget: the slow tier (tests tagged [slow], e.g. the solver's
+# whole-clip accuracy sweeps, 50-110 s each under qemu); they run natively in the test stage. Only the programs and the test binaries of these labels are built (the other test
 # binaries would be a third of the build); ctest ignores the unbuilt ones under -L.
 # --timeout: a test that hangs under emulation fails the stage instead of stalling it.
-source "$root/.ci/slow_tests.sh"
 EPITRACK_BUILD_TARGETS="epitrack-device epitrack-solve epitrack-synth epitrack-track epitrack-record
   epitrack-eval epitrack_algo_tests epitrack_alloc_tests epitrack_geometry_tests epitrack_hal_tests
   epitrack_hal_alloc_tests epitrack_sfm_tests" \
-  EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -E $solver_sweeps ${EPITRACK_CTEST_ARGS:-}" \
+  EPITRACK_CTEST_ARGS="--timeout 900 -L ^(algo|hal|geometry|alloc|sfm)$ -LE slow ${EPITRACK_CTEST_ARGS:-}" \
   bash "$root/tools/cross.sh" aarch64 "$cross" --test
 
 clip=$root/build/ci-digest

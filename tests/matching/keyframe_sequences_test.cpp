@@ -46,7 +46,7 @@ SolveResult solveAndEvaluate(const TempDir& dir, const std::string& frames,
 }  // namespace
 
 TEST_CASE("TUM fr3/cabinet key frames: descriptor tracks, at least 90 % of the frames solved",
-          "[matching][real]") {
+          "[matching][real][slow]") {
   const std::string name = "tum_fr3_cabinet_keyframes";
   if (!epitrack::test::haveSharedSequence(name)) return;
   const std::string seq = sharedDataDir() + "/" + name;
@@ -78,7 +78,7 @@ TEST_CASE("TUM fr3/cabinet key frames: descriptor tracks, at least 90 % of the f
 }
 
 TEST_CASE("templeRing views 12-30: descriptor tracks, rotations better than LK",
-          "[matching][real]") {
+          "[matching][real][slow]") {
   const std::string name = "middlebury_templeRing";
   if (!epitrack::test::haveSharedSequence(name)) return;
   const std::string seq = sharedDataDir() + "/" + name;

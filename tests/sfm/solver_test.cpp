@@ -95,7 +95,7 @@ Outcome solve(const Clip& c, double focal, int refine_distortion = 0) {
 }  // namespace
 
 TEST_CASE("Orbit with a wandering target, known focal: every frame, ATE <= 0.01 %",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kOrbit, 340, 0.5, 0.3);
   const auto r = solve(c, 600.0);
@@ -108,7 +108,7 @@ TEST_CASE("Orbit with a wandering target, known focal: every frame, ATE <= 0.01 
   CHECK(r.reproj_mean <= 0.5);  // 0.3 px per coordinate: 0.38 px expected
 }
 
-TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][solver]") {
+TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kOrbit, 200, 0.5, 0.3);
   const auto r = solve(c, 0.0);
@@ -120,7 +120,8 @@ TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][s
   CHECK(r.solved == 200);
 }
 
-TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %", "[sfm][solver]") {
+TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %",
+          "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kHandheld, 200, 0.0, 0.3);
   const auto r = solve(c, 0.0);
@@ -131,7 +132,7 @@ TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %", 
   CHECK(r.solved == 200);
 }
 
-TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver]") {
+TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kDolly, 200, 0.0, 0.3);
   const auto r = solve(c, 600.0);
@@ -142,7 +143,7 @@ TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver]") 
 }
 
 TEST_CASE("Exact orbit (optical axes meet): completes with a fallback focal, not observable",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   // Critical for the paper's self-calibration from F: the summary says the focal was not
   // observable (from F) and that the focal is a fallback; the fallback is the minimum of the
   // reprojection profile over whole solves (SolverOptions::focal_sweep), which this 3D scene
@@ -187,7 +188,7 @@ TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][
   CHECK(worst < 0.1);
 }
 
-TEST_CASE("The solve does not depend on small shifts of the clip's start", "[sfm][solver]") {
+TEST_CASE("The solve does not depend on small shifts of the clip's start", "[sfm][solver][slow]") {
   for (const int start : {0, 3, 7}) {
     Clip c;
     makeClip(c, synth::SceneKind::kOrbit, 200, 0.5, 0.3, start);

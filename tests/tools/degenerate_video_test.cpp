@@ -174,7 +174,7 @@ TEST_CASE("Pure rotation gives a tripod solve and a single plane asks for the fo
   CHECK(jsonNumber(given_focal.summary, "solved_frames") == 60);
 }
 
-TEST_CASE("Extreme motion blur gives a defined status", "[solve][degenerate]") {
+TEST_CASE("Extreme motion blur gives a defined status", "[solve][degenerate][slow]") {
   TempDir dir("degenerate");
   const std::string clip = synth(dir, "blur", "--scene handheld --frames 40 --blur 6");
   const Outcome o = solve(dir, clip + "/frames");

@@ -180,6 +180,18 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("median_reproj_px", median_px);
   j.field("points", finite_points);
   j.field("observations", static_cast<int64_t>(rec.observations.size()));
+  int64_t outliers = 0;
+  for (const PointObservation& o : rec.observations) outliers += o.outlier ? 1 : 0;
+  j.field("outlier_observations", outliers);
+  // The COLMAP model's own counts (colmap model_analyzer prints the same numbers).
+  const ColmapCounts colmap = colmapCounts(rec);
+  j.key("colmap");
+  j.beginObject();
+  j.field("images", colmap.images);
+  j.field("points", colmap.points);
+  j.field("observations", colmap.observations);
+  j.field("mean_error_px", colmap.mean_error_px);
+  j.endObject();
   j.key("seconds");
   j.beginObject();
   for (const auto& [stage, secs] : rec.seconds.stages) j.field(stage, secs);

@@ -56,6 +56,9 @@ struct PointObservation {
   double y = 0.0;
   double residual_px =
       std::numeric_limits<double>::quiet_NaN();  ///< reprojection error, NaN: unknown
+  /// Left out of the model as an outlier (computeReprojectionErrors: residual above the outlier
+  /// threshold, or the point behind the camera): not in any mean, count or COLMAP track.
+  bool outlier = false;
 };
 
 /// One pairwise focal estimate of the self-calibration (for the report).
@@ -143,6 +146,15 @@ struct Reconstruction {
   /// Optional image file names per frame index (basename, e.g. "000012.png"), used by COLMAP's
   /// images.txt; frames beyond the vector are named from the index by ExportOptions.
   std::vector<std::string> frame_names;
+  /// Absolute directory holding the frame_names files ("" when the input was not a directory of
+  /// images): the plate of the Blender and Nuke scripts.
+  std::string frames_dir;
+  /// Absolute path of a video INPUT (MJPEG AVI, Y4M; "" otherwise): the plate when there are no
+  /// frame files.
+  std::string input_movie;
+  /// Nominal frame rate of the clip (frames per second, as augmented.avi is written); 0: unknown,
+  /// then the median timestamp interval when Reconstruction::has_timestamps.
+  double fps = 0.0;
 };
 
 /// Settings of the exports that are not part of the solve.

@@ -38,8 +38,8 @@ int main(int argc, char** argv) {
       "epitrack-solve", "INPUT --out DIR [options]",
       "Tracks INPUT, self-calibrates the focal length (unless given), reconstructs the camera\n"
       "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
-      "summary.json, report.html, colmap/, blender_camera.py, camera.chan and, with --render\n"
-      "or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
+      "summary.json, report.html, colmap/, blender_camera.py, camera.chan, camera.nk and, with\n"
+      "--render or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
       "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.\n"
       "Ctrl-C (SIGINT) or SIGTERM stops at the next consistent point: summary.json then says\n"
       "\"interrupted\" and lists the outputs written; a second Ctrl-C kills at once.\n"

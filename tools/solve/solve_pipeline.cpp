@@ -20,6 +20,7 @@
 #include "hal/io/tracks_csv.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
+#include "tools/export/clip_input.hpp"
 #include "tools/export/output_writers.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
 #include "tools/export/reprojection_errors.hpp"
@@ -258,6 +259,7 @@ int runSolve(const SolveCommandOptions& o) {
   std::vector<int> features_per_frame;
   bool decision_reported = false;
   std::vector<double> timestamps;
+  std::vector<std::string> frame_paths;  // the file of each readable frame, for the exports
   const bool draw_frames = o.render != "none" || o.overlay == "tracks";
   const bool keep_frames = draw_frames && o.input == "-";  // stdin cannot be re-read
   std::vector<Image<uint8_t>> kept;
@@ -354,6 +356,7 @@ int runSolve(const SolveCommandOptions& o) {
       }
     }
     timestamps.push_back(frame.timestamp_s);
+    frame_paths.emplace_back(frame.path);
     if (keep_frames) {
       kept.emplace_back(width, height);
       copyPixels<uint8_t>(frame.luma, kept.back().view());
@@ -473,6 +476,7 @@ int runSolve(const SolveCommandOptions& o) {
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
+  io::describeClipInput(rec, o.input, frame_paths, source->info().fps);
   rec.focal_fallback = toString(summary.focal_fallback);
   for (const auto& p : solver.focalProfile())
     rec.focal_profile.push_back(

@@ -166,7 +166,8 @@ TEST_CASE("Pure rotation gives a tripod solve and a single plane asks for the fo
   CHECK(unknown_focal.err.find("no reprojected observation") != std::string::npos);
   // Every frame unsolved, for the reason the solve gives.
   CHECK(compact(unknown_focal.summary)
-            .find("\"unsolved_ranges\":[{\"first\":0,\"last\":59,\"frames\":60,\"cause\":"
+            .find("\"unsolved_ranges\":[{\"first\":0,\"last\":59,\"frames\":60,\"first_name\":"
+                  "\"000000.pgm\",\"last_name\":\"000059.pgm\",\"cause\":"
                   "\"no-reconstruction\"") != std::string::npos);
   const Outcome given_focal = solve(dir, plane + "/frames", "--focal 280");
   CHECK(given_focal.exit_code == 0);
@@ -280,7 +281,9 @@ TEST_CASE("A clip whose second half is a blank wall is partial: exit 3, ranges a
   CHECK(summary.find(solved_run) != std::string::npos);
   CHECK(summary.find("\"unsolved_ranges\":[{\"first\":" + std::to_string(static_cast<int>(solved)) +
                      ",\"last\":119,\"frames\":" + std::to_string(120 - static_cast<int>(solved)) +
-                     ",\"cause\":\"tracks-lost\"") != std::string::npos);
+                     ",\"first_name\":\"" + frameName("", static_cast<int>(solved)).substr(1) +
+                     "\",\"last_name\":\"000119.pgm\",\"cause\":\"tracks-lost\"") !=
+        std::string::npos);
   // stderr names the unsolved range and its cause.
   CHECK(o.err.find("epitrack-solve: partial: ") != std::string::npos);
   CHECK(o.err.find("-119 (tracks lost") != std::string::npos);

@@ -19,6 +19,7 @@
 #include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
 #include "algo/sfm/reprojection.hpp"
+#include "algo/sfm/two_view_initialization.hpp"
 
 namespace epitrack {
 
@@ -318,29 +319,25 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
   }
   Eigen::Matrix3d K;
   K << f_, 0, cx_, 0, f_ * aspect_, cy_, 0, 0, 1;
-  // Distortion is applied through `normalized`; E from F in pixels ignores it (refined below).
-  const Eigen::Matrix3d E = essentialFromFundamental(f.F, K, K);
-  RelativePoseResult rp;
-  if (!recoverRelativePose(E, n1, n2, f.mask, rp)) return false;
-  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
-  PoseCw pose = rp.pose;
-  refineRelativePose(n1, n2, f.mask, f_, pose);
-  TriangulationOptions to;
-  to.focal_px = f_;
-  to.min_parallax_deg = options_.min_point_parallax_deg;
-  to.max_reproj_px = options_.reproj_threshold_px;
-  const PoseCw poses[2] = {PoseCw{}, pose};
+  TwoViewOptions tv;
+  tv.focal_px = f_;
+  tv.min_point_parallax_deg = options_.min_point_parallax_deg;
+  tv.reproj_threshold_px = options_.reproj_threshold_px;
+  PoseCw pose;
+  std::vector<Eigen::Vector3d> X_all(n1.size());
+  std::vector<int> accepted(n1.size());
+  std::vector<double> parallax(n1.size());
+  int count = 0;
+  if (reconstructTwoView(f.F, K, n1, n2, f.mask, tv, pose, X_all, accepted, parallax, count) !=
+      TwoViewStatus::kOk)
+    return false;
+  parallax.resize(static_cast<std::size_t>(count));
   tracks.clear();
   X.clear();
-  std::vector<double> parallax;
-  for (std::size_t i = 0; i < n1.size(); ++i) {
-    if (!f.mask[i]) continue;
-    const Eigen::Vector2d obs[2] = {n1[i], n2[i]};
-    const auto t = triangulatePoint(poses, obs, to);
-    if (t.status != TriangulationStatus::kOk) continue;
+  for (int g = 0; g < count; ++g) {
+    const auto i = static_cast<std::size_t>(accepted[static_cast<std::size_t>(g)]);
     tracks.push_back(ids[i]);
-    X.push_back(t.X);
-    parallax.push_back(t.parallax_deg);
+    X.push_back(X_all[i]);
   }
   if (tracks.size() < 30) return false;
   const double med_parallax = median(parallax);

@@ -198,7 +198,8 @@ struct SolverSummary {
 /// pose refined on the final map). A pure rotation ends in a tripod solve (rotation and focal;
 /// depth unknown). Each stage returns false when the solve cannot go on; `status()` says why.
 ///
-/// Sources by concern: solver.cpp (the four stages, adjustment, triangulation),
+/// Sources by concern: solver.cpp (calibration, initial pair, final adjustment),
+/// solver_registration.cpp (registration, keyframes, triangulation, bundle adjustment),
 /// solver_focal_profile.cpp (focal profile), solver_tripod.cpp (tripod solve),
 /// solver_keyframes.cpp (key-frame mode), solver_coverage.cpp (unsolved causes, partial status).
 class Solver {

@@ -8,6 +8,7 @@
 #include "algo/math/median.hpp"
 #include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/reprojection.hpp"
+#include "algo/sfm/two_view_initialization.hpp"
 
 namespace epitrack {
 
@@ -399,29 +400,16 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
   if (fr.inliers < options_.init_min_points) return false;
   Eigen::Matrix3d K;
   K << K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1;
-  const Eigen::Matrix3d E = essentialFromFundamental(fr.F, K, K);
-  RelativePoseResult rp;
-  if (!recoverRelativePose(E, n1, n2, fr.mask, rp)) return false;
-  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
-  PoseCw pose = rp.pose;
-  refineRelativePose(n1, n2, fr.mask, K_.fx, pose);
-
-  TriangulationOptions to;
-  to.focal_px = K_.fx;
-  to.min_parallax_deg = options_.min_point_parallax_deg;
-  to.max_reproj_px = options_.reproj_threshold_px;
-  const PoseCw poses[2] = {PoseCw{}, pose};
+  TwoViewOptions tv;
+  tv.focal_px = K_.fx;
+  tv.min_point_parallax_deg = options_.min_point_parallax_deg;
+  tv.reproj_threshold_px = options_.reproj_threshold_px;
+  PoseCw pose;
   int good = 0;
-  for (std::size_t i = 0; i < nc; ++i) {
-    if (!fr.mask[i]) continue;
-    const Eigen::Vector2d obs[2] = {n1[i], n2[i]};
-    const auto t = triangulatePoint(poses, obs, to);
-    if (t.status != TriangulationStatus::kOk) continue;
-    X_[i] = t.X;
-    accepted_[static_cast<std::size_t>(good)] = static_cast<int>(i);
-    scratch_[static_cast<std::size_t>(good)] = t.parallax_deg;
-    ++good;
-  }
+  if (reconstructTwoView(fr.F, K, n1, n2, fr.mask, tv, pose, std::span(X_.data(), nc),
+                         std::span(accepted_.data(), nc), std::span(scratch_.data(), nc),
+                         good) != TwoViewStatus::kOk)
+    return false;
   progress.points = good;
   progress.stage = LiveInitStage::kTooFewPoints;
   if (good < options_.init_min_points) return false;

@@ -430,10 +430,11 @@ int runSolve(const SolveCommandOptions& o) {
   // after it, the solve is complete and its exports are written (quickly) before stopping.
   const auto stopped = [&](const char* stage) {
     progress.end();
-    rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
-    rec.focal_source = solver.focalSource();
-    rec.focal_observable = solver.focalObservable();
-    rec.motion = solver.motion();
+    const SolverSummary sum = solver.summary();
+    rec.intrinsics = CameraIntrinsics::centered(width, height, sum.focal_px);
+    rec.focal_source = toString(sum.focal_source);
+    rec.focal_observable = sum.focal_observable;
+    rec.motion = toString(sum.motion);
     return stopInterrupted(rec, o.out_dir, stage,
                            std::to_string(frames) + " frames tracked, solve not finished");
   };
@@ -458,24 +459,25 @@ int runSolve(const SolveCommandOptions& o) {
   if (interruptRequested()) stop_stage = "bundle_adjustment";
 
   // --- reconstruction ------------------------------------------------------------------------
-  rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
-  rec.intrinsics.cx = solver.cx();
-  rec.intrinsics.cy = solver.cy();
-  rec.intrinsics.fy = solver.focal() * solver.aspect();
-  rec.intrinsics.k1 = solver.k1();
-  rec.intrinsics.k2 = solver.k2();
-  rec.focal_source = solver.focalSource();
-  rec.focal_observable = solver.focalObservable();
+  const SolverSummary summary = solver.summary();
+  rec.intrinsics = CameraIntrinsics::centered(width, height, summary.focal_px);
+  rec.intrinsics.cx = summary.cx;
+  rec.intrinsics.cy = summary.cy;
+  rec.intrinsics.fy = summary.focal_px * summary.aspect;
+  rec.intrinsics.k1 = summary.k1;
+  rec.intrinsics.k2 = summary.k2;
+  rec.focal_source = toString(summary.focal_source);
+  rec.focal_observable = summary.focal_observable;
   if (so.refine_given_focal && so.focal_px > 0.0) rec.focal_given_px = so.focal_px;
-  rec.motion = solver.motion();
-  rec.status = toString(solver.status());
-  rec.message = solver.message();
+  rec.motion = toString(summary.motion);
+  rec.status = toString(summary.status);
+  rec.message = summary.message;
   if (!input_error.empty())
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
   io::describeClipInput(rec, o.input, frame_paths, source->info().fps);
-  rec.focal_fallback = solver.focalFallback();
+  rec.focal_fallback = toString(summary.focal_fallback);
   for (const auto& p : solver.focalProfile())
     rec.focal_profile.push_back(
         {p.start_px, p.focal_px, p.refined, p.median_reproj_px, p.solved_frames});
@@ -686,8 +688,8 @@ int runSolve(const SolveCommandOptions& o) {
   if (std::isfinite(mean))
     std::snprintf(reprojection, sizeof(reprojection), "reprojection mean %.3f px", mean);
   char focal_text[32] = "unknown";
-  if (std::isfinite(solver.focal()) && solver.focal() > 0.0)
-    std::snprintf(focal_text, sizeof(focal_text), "%.2f px", solver.focal());
+  if (std::isfinite(summary.focal_px) && summary.focal_px > 0.0)
+    std::snprintf(focal_text, sizeof(focal_text), "%.2f px", summary.focal_px);
   char line[512];
   std::snprintf(line, sizeof(line),
                 "%s: %d/%d frames solved, focal %s (%s%s%s%s), %zu points, %s, %.2f s; outputs "
@@ -712,11 +714,11 @@ int runSolve(const SolveCommandOptions& o) {
   if (solver.status() == Solver::Status::kPartial) {
     // Outputs written, but not of the whole clip: the ranges and their causes are named here and
     // in summary.json (solved_ranges, unsolved_ranges).
-    std::fprintf(stderr, "epitrack-solve: partial: %s\n", solver.message().c_str());
+    std::fprintf(stderr, "epitrack-solve: partial: %s\n", summary.message.c_str());
     return kExitPartial;
   }
   if (!ok) {
-    std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());
+    std::fprintf(stderr, "epitrack-solve: %s\n", summary.message.c_str());
     // A tripod solve is a result (every camera's rotation and the focal), not a failure.
     return solver.status() == Solver::Status::kRotationOnly ? 0 : 1;
   }

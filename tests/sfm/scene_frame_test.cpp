@@ -201,7 +201,9 @@ TEST_CASE("no plane falls back to the first-camera frame with a status", "[scene
   std::vector<ScenePose> cams(3);
   cams[1].p_wc = Eigen::Vector3d(0.5, 0, 0);
   cams[2].p_wc = Eigen::Vector3d(1.0, 0.1, 0);
-  const SceneFrame f = computeSceneFrame(blob, {}, cams, SceneFrameOptions{});
+  SceneFrameOptions dominant_plane_only;
+  dominant_plane_only.up_from_cameras = false;  // the fallback before issue 23
+  const SceneFrame f = computeSceneFrame(blob, {}, cams, dominant_plane_only);
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
   CHECK_FALSE(f.plane_found);
   CHECK(f.origin_used == SceneOrigin::kFirstCamera);
@@ -209,15 +211,31 @@ TEST_CASE("no plane falls back to the first-camera frame with a status", "[scene
   std::vector<double> depths;
   for (const auto& X : blob) depths.push_back(X.z());
   CHECK(f.world_to_scene.scale == Approx(1.0 / median(depths)));
+
+  // With the cameras' up (their -y, the world's -y here) the ground is under the blob instead.
+  const SceneFrame g = computeSceneFrame(blob, {}, cams, SceneFrameOptions{});
+  CHECK(g.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(g.ground == SceneGround::kCameras);
+  CHECK((g.world_to_scene.R.row(2).transpose() + Eigen::Vector3d::UnitY()).norm() < 1e-9);
+  CHECK(g.up_confidence == Approx(1.0));
+  int below = 0;
+  for (const auto& X : blob) below += g.world_to_scene.apply(X).z() < 0.0 ? 1 : 0;
+  CHECK(below <= 20);  // the 5 % quantile of the heights
 }
 
 TEST_CASE("cameras on the plane and too few points fall back", "[scene_frame]") {
   PlaneScene scene(4, 100, 0);
   std::vector<ScenePose> on_plane = scene.cameras;
   for (auto& c : on_plane) c.p_wc -= scene.normal * (scene.normal.dot(c.p_wc) - scene.offset);
-  SceneFrame f = computeSceneFrame(scene.points, {}, on_plane, SceneFrameOptions{});
+  SceneFrameOptions dominant_plane_only;
+  dominant_plane_only.up_from_cameras = false;  // the fallback before issue 23
+  SceneFrame f = computeSceneFrame(scene.points, {}, on_plane, dominant_plane_only);
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
   CHECK(f.origin_used == SceneOrigin::kFirstCamera);
+  // With the cameras' up: the plane is not a ground (the cameras are on it), and the horizontal
+  // ground under the points has the cameras on it too: the first-camera frame again.
+  f = computeSceneFrame(scene.points, {}, on_plane, SceneFrameOptions{});
+  CHECK_FALSE(f.plane_found);
 
   // Two points: no plane; none in front of the first camera: scale from the farthest camera.
   std::vector<Eigen::Vector3d> two = {Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(1, 0, -2)};
@@ -225,6 +243,7 @@ TEST_CASE("cameras on the plane and too few points fall back", "[scene_frame]") 
   cams[1].p_wc = Eigen::Vector3d(0, 0.5, 0);
   f = computeSceneFrame(two, {}, cams, SceneFrameOptions{});
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
+  CHECK(f.ground == SceneGround::kNone);
   CHECK(f.world_to_scene.scale == Approx(2.0));
 }
 
@@ -320,15 +339,22 @@ TEST_CASE("plane frame prefers the ground to a larger wall", "[scene_frame]") {
   for (const auto& c : cameras) heights.push_back(c.p_wc.z());
   CHECK(f.world_to_scene.scale == Approx(1.0 / median(heights)));
 
-  options.prefer_ground = false;  // the dominant plane is the wall
+  options.up_from_cameras = false;  // the dominant plane is the wall
   f = computeSceneFrame(points, {}, cameras, options);
   REQUIRE(f.status == SceneFrameStatus::kOk);
   CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);  // facing the cameras
   CHECK(f.plane_inliers == 300);
+  CHECK(f.ground == SceneGround::kPlane);
 
-  // A ground with too few points (below ground_min_ratio of the wall's) loses to the wall.
+  // A floor too small to count as a plane (60 of 360 points, below min_plane_fraction): up comes
+  // from the cameras and the ground is still under the points, at the floor's height.
   roomCorner(60, 300, points, cameras);
   f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
-  REQUIRE(f.status == SceneFrameStatus::kOk);
-  CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);
+  REQUIRE(f.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(f.ground == SceneGround::kCameras);
+  CHECK_FALSE(f.plane_found);
+  // The cameras look 7 degrees down at the wall: their mean image-up leans that much towards
+  // the wall (the bias of an up from the cameras alone), so the ground is level within 10 degrees.
+  CHECK(f.plane_normal.dot(Eigen::Vector3d::UnitZ()) > std::cos(10.0 * M_PI / 180.0));
+  CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d(0.0, 1.0, 0.0)).z()) < 0.15);
 }

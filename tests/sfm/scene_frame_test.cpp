@@ -358,3 +358,73 @@ TEST_CASE("plane frame prefers the ground to a larger wall", "[scene_frame]") {
   CHECK(f.plane_normal.dot(Eigen::Vector3d::UnitZ()) > std::cos(10.0 * M_PI / 180.0));
   CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d(0.0, 1.0, 0.0)).z()) < 0.15);
 }
+
+TEST_CASE("wall-only shot: up from the cameras, the ground under the wall", "[scene_frame]") {
+  // A textured wall (y = 3) filmed by level cameras walking along it: the only plane is vertical.
+  synth::SplitMix64 rng(31);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 300; ++i) {
+    const double z = rng.uniform(0.5, 3.0);
+    const double x = rng.uniform(-3, 3);
+    points.emplace_back(x, 3.0, z);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 10; ++i) {
+    ScenePose c;
+    c.p_wc = Eigen::Vector3d(-1.0 + 0.2 * i, -1.0, 1.6);
+    c.R_wc =
+        lookAt(c.p_wc, c.p_wc + Eigen::Vector3d(0.1 * (i - 5), 1.0, 0.0), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(f.ground == SceneGround::kCameras);
+  CHECK(f.up_confidence == Approx(1.0).margin(1e-9));
+  // Up within 2 degrees of the true up, the ground at the wall's lowest points, cameras above.
+  CHECK(f.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(2.0 * M_PI / 180.0));
+  std::vector<double> z;
+  for (const auto& X : points) z.push_back(f.world_to_scene.apply(X).z());
+  std::sort(z.begin(), z.end());
+  CHECK(z[z.size() / 20] == Approx(0.0).margin(1e-9));
+  for (const auto& c : cameras) CHECK(f.world_to_scene.apply(c.p_wc).z() > 0.0);
+  // Before issue 23 the wall was the ground: +z pointed at the cameras, horizontally.
+  SceneFrameOptions old;
+  old.up_from_cameras = false;
+  const SceneFrame g = computeSceneFrame(points, {}, cameras, old);
+  CHECK(std::abs(g.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ())) < 1e-6);
+}
+
+TEST_CASE("turntable: up from a ring of cameras looking down at an object", "[scene_frame]") {
+  // An object (points filling a box, no dominant plane) seen from a full ring of cameras 35
+  // degrees above it: each camera's image-up leans inwards, their mean is vertical.
+  synth::SplitMix64 rng(41);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 400; ++i) {
+    const double z = rng.uniform(0.0, 0.3);
+    const double y = rng.uniform(-0.1, 0.1);
+    const double x = rng.uniform(-0.1, 0.1);
+    points.emplace_back(x, y, z);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 24; ++i) {
+    const double a = 2.0 * M_PI * i / 24.0;
+    const double elevation = 35.0 * M_PI / 180.0;
+    ScenePose c;
+    c.p_wc = 0.6 * Eigen::Vector3d(std::cos(elevation) * std::cos(a),
+                                   std::cos(elevation) * std::sin(a), std::sin(elevation));
+    c.R_wc = lookAt(c.p_wc, Eigen::Vector3d(0, 0, 0.15), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.ground != SceneGround::kNone);
+  CHECK(f.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(2.0 * M_PI / 180.0));
+  // Each camera looks down at the object's middle by atan(0.6 sin 35 - 0.15, 0.6 cos 35): that
+  // lean is the spread of the image-up axes, and the confidence is its cosine.
+  const double down =
+      std::atan2(0.6 * std::sin(35.0 * M_PI / 180.0) - 0.15, 0.6 * std::cos(35.0 * M_PI / 180.0));
+  CHECK(f.up_spread_deg == Approx(down * 180.0 / M_PI).margin(0.01));
+  CHECK(f.up_confidence == Approx(std::cos(down)).margin(1e-6));
+  // The ground is at the object's base (within the 5 % quantile of its height, 0.015).
+  CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d::Zero()).z()) <
+        0.03 * f.world_to_scene.scale);
+}

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 namespace epitrack {
@@ -207,6 +208,28 @@ CameraUp estimateCameraUp(std::span<const ScenePose> cameras) {
     if (kept == 0 || sum.norm() < 1e-9) return result;
     direction = sum.normalized();
     length = sum.norm() / static_cast<double>(cameras.size());  // inlier fraction included
+  }
+  // Pitch bias: cameras looking down lean their image-up axes towards the view, while their x
+  // axes (image right) stay level as long as the camera is not rolled. So prefer the direction
+  // the kept x axes are all perpendicular to: minimise sum (x_i . u)^2 + w n |u - mean|^2, i.e.
+  // u ~ (X + w n I)^-1 mean with X = sum x_i x_i^T. When the cameras panned, X has a clear null
+  // direction (the true up) and it wins; when they all face one way, X only removes the roll
+  // component from the mean and the pitch lean stays (it cannot be told from the cameras).
+  constexpr double kMeanWeight = 0.05;
+  Eigen::Matrix3d X = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d kept_mean = Eigen::Vector3d::Zero();
+  int kept = 0;
+  for (const ScenePose& c : cameras) {
+    if (-c.R_wc.col(1).dot(direction) < cos_keep) continue;
+    X += c.R_wc.col(0) * c.R_wc.col(0).transpose();
+    kept_mean -= c.R_wc.col(1);
+    ++kept;
+  }
+  if (kept > 0) {
+    const double w = kMeanWeight * kept;
+    const Eigen::Vector3d u =
+        (X + w * Eigen::Matrix3d::Identity()).ldlt().solve(w * kept_mean / kept);
+    if (u.allFinite() && u.norm() > 1e-9 && u.dot(direction) > 0.0) direction = u.normalized();
   }
   std::vector<double> angles;
   angles.reserve(cameras.size());
@@ -420,8 +443,29 @@ SceneFrame computeSceneFrame(std::span<const Eigen::Vector3d> points,
         frame.camera_up = up.up;
         plane = findGroundPlane(finite, cameras, up.up, frame.inlier_threshold, options);
         if (!plane.found) {
-          camera_ground = groundUnderPoints(finite, cameras, up.up, options);
+          // No ground, but a wall is vertical: when the dominant plane is within
+          // ground_max_tilt_deg of vertical, up lies in it. Removing the normal component takes
+          // out the lean of cameras that look up or down at the wall.
+          Eigen::Vector3d level_up = up.up;
+          const PlaneFit wall = findDominantPlane(finite, cameras, frame.inlier_threshold, options);
+          const double max_sin = std::sin(options.ground_max_tilt_deg * std::numbers::pi / 180.0);
+          // A correction of at most kMaxWallCorrectionDeg: a lean of the cameras, not a plane
+          // through an object that merely happens to be steep.
+          constexpr double kMaxWallCorrectionDeg = 15.0;
+          if (wall.found &&
+              std::abs(wall.plane.normal.dot(level_up)) <
+                  std::min(max_sin, std::sin(kMaxWallCorrectionDeg * std::numbers::pi / 180.0))) {
+            level_up -= wall.plane.normal.dot(level_up) * wall.plane.normal;
+            level_up.normalize();
+          }
+          camera_ground = groundUnderPoints(finite, cameras, level_up, options);
           use_camera_ground = camera_ground.median_camera_height > frame.inlier_threshold;
+          if (use_camera_ground) {
+            frame.camera_up = level_up;
+          } else if (level_up != up.up) {
+            camera_ground = groundUnderPoints(finite, cameras, up.up, options);
+            use_camera_ground = camera_ground.median_camera_height > frame.inlier_threshold;
+          }
         }
       }
     }

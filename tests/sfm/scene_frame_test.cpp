@@ -387,6 +387,20 @@ TEST_CASE("wall-only shot: up from the cameras, the ground under the wall", "[sc
   std::sort(z.begin(), z.end());
   CHECK(z[z.size() / 20] == Approx(0.0).margin(1e-9));
   for (const auto& c : cameras) CHECK(f.world_to_scene.apply(c.p_wc).z() > 0.0);
+  // Cameras looking 10 degrees down at the wall: their image-up axes lean 10 degrees towards it,
+  // but up lies in the (vertical) wall, which takes the lean out.
+  std::vector<ScenePose> looking_down = cameras;
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const double down = std::tan(10.0 * M_PI / 180.0);
+    const ScenePose& c = cameras[i];
+    looking_down[i].R_wc =
+        lookAt(c.p_wc, c.p_wc + Eigen::Vector3d(0.1 * (static_cast<double>(i) - 5), 1.0, -down),
+               Eigen::Vector3d::UnitZ());
+  }
+  const SceneFrame d = computeSceneFrame(points, {}, looking_down, SceneFrameOptions{});
+  REQUIRE(d.ground == SceneGround::kCameras);
+  CHECK(d.up_spread_deg > 3.0);  // the lean shows in the spread
+  CHECK(d.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(0.5 * M_PI / 180.0));
   // Before issue 23 the wall was the ground: +z pointed at the cameras, horizontally.
   SceneFrameOptions old;
   old.up_from_cameras = false;

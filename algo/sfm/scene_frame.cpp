@@ -358,6 +358,30 @@ CameraGround groundUnderPoints(const std::vector<Eigen::Vector3d>& points,
   return g;
 }
 
+/// The ground normal levelled with the cameras' x axes: hand-held, tripod and vehicle footage
+/// keeps the image's horizontal level (little roll), so up is perpendicular to every x axis,
+/// while a plane fitted to a grazing band of road, kerb and verge can roll by several degrees.
+/// Minimises sum (x_i . u)^2 + w k |u - normal|^2 over the k cameras whose image-up is within 60
+/// degrees of `up` (u = (X + w k I)^-1 w k normal): the components the x axes pin down follow
+/// them, the rest (the pitch a forward-facing clip cannot tell) stays the plane's.
+Eigen::Vector3d levelWithCameraAxes(const Eigen::Vector3d& normal,
+                                    std::span<const ScenePose> cameras, const Eigen::Vector3d& up) {
+  constexpr double kPlaneWeight = 0.05;
+  const double cos_keep = std::cos(60.0 * std::numbers::pi / 180.0);
+  Eigen::Matrix3d X = Eigen::Matrix3d::Zero();
+  int kept = 0;
+  for (const ScenePose& c : cameras) {
+    if (-c.R_wc.col(1).dot(up) < cos_keep) continue;
+    X += c.R_wc.col(0) * c.R_wc.col(0).transpose();
+    ++kept;
+  }
+  if (kept == 0) return normal;
+  const double w = kPlaneWeight * kept;
+  const Eigen::Vector3d u = (X + w * Eigen::Matrix3d::Identity()).ldlt().solve(w * normal);
+  if (!u.allFinite() || u.norm() < 1e-9 || u.dot(normal) <= 0.0) return normal;
+  return u.normalized();
+}
+
 /// Rows: the scene axes in world coordinates (x from the first camera's x projected onto the
 /// plane, z the normal, y = z x x).
 Eigen::Matrix3d planeRotation(const Eigen::Vector3d& normal, const ScenePose& first) {
@@ -473,17 +497,32 @@ SceneFrame computeSceneFrame(std::span<const Eigen::Vector3d> points,
       plane = findDominantPlane(finite, cameras, frame.inlier_threshold, options);
     }
   }
+  frame.plane_up_angle_deg = std::numeric_limits<double>::quiet_NaN();
+  if (plane.found && !frame.camera_up.isZero()) {
+    frame.plane_up_angle_deg =
+        std::acos(std::clamp(plane.plane.normal.dot(frame.camera_up), -1.0, 1.0)) * 180.0 /
+        std::numbers::pi;
+    if (options.level_ground_with_cameras) {
+      // Through the same inlier centroid, with the levelled normal; the cameras stay above.
+      Plane levelled;
+      levelled.normal = levelWithCameraAxes(plane.plane.normal, cameras, frame.camera_up);
+      levelled.offset = levelled.normal.dot(plane.centroid);
+      std::vector<double> heights(cameras.size());
+      for (std::size_t i = 0; i < cameras.size(); ++i) {
+        heights[i] = levelled.signedDistance(cameras[i].p_wc);
+      }
+      const double median_height = medianOf(heights);
+      if (median_height > frame.inlier_threshold) {
+        plane.plane = levelled;
+        plane.median_camera_distance = median_height;
+      }
+    }
+  }
   frame.plane_found = plane.found;
   frame.plane_inliers = plane.inliers;
-  frame.plane_up_angle_deg = std::numeric_limits<double>::quiet_NaN();
   if (plane.found) {
     frame.plane_normal = plane.plane.normal;
     frame.plane_offset = plane.plane.offset;
-    if (!frame.camera_up.isZero()) {
-      frame.plane_up_angle_deg =
-          std::acos(std::clamp(plane.plane.normal.dot(frame.camera_up), -1.0, 1.0)) * 180.0 /
-          std::numbers::pi;
-    }
   }
 
   const ScenePose& first = cameras.front();

@@ -74,6 +74,9 @@ struct SceneFrameOptions {
   double ground_max_tilt_deg = 30.0;
   /// A ground has at most this fraction of the points clearly (3 inlier thresholds) below it.
   double ground_max_below_fraction = 0.2;
+  /// Level the ground plane's normal with the cameras' x axes (image right), which stay level in
+  /// footage shot without roll: removes the roll of a plane fitted to a grazing band of ground.
+  bool level_ground_with_cameras = true;
   /// Without a level plane, the ground height is this quantile of the points' heights along up.
   double ground_height_quantile = 0.05;
 };
@@ -109,7 +112,8 @@ struct SceneFrame {
   Eigen::Vector3d camera_up = Eigen::Vector3d::Zero();
   double up_confidence = 0.0;
   double up_spread_deg = 0.0;
-  /// Angle between the chosen plane's normal and camera_up (degrees), NaN without either.
+  /// Angle between the fitted plane's normal (before levelling) and camera_up (degrees), NaN
+  /// without either. plane_normal is the levelled normal.
   double plane_up_angle_deg = 0.0;
 };
 

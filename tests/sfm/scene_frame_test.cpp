@@ -442,3 +442,34 @@ TEST_CASE("turntable: up from a ring of cameras looking down at an object", "[sc
   CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d::Zero()).z()) <
         0.03 * f.world_to_scene.scale);
 }
+
+TEST_CASE("a rolled ground fit is levelled with the cameras' x axes", "[scene_frame]") {
+  // A road band seen by level cameras driving along +y; the fitted plane rolls 7 degrees about
+  // the driving direction (as a plane through road, kerb and verge can). The cameras' x axes are
+  // level, so the ground's normal follows them; the roll is reported as the plane-to-up angle.
+  synth::SplitMix64 rng(51);
+  const double roll = 7.0 * M_PI / 180.0;
+  const Eigen::Vector3d normal(std::sin(roll), 0.0, std::cos(roll));
+  const Eigen::Vector3d across = Eigen::Vector3d::UnitY().cross(normal);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 300; ++i) {
+    const double along = rng.uniform(2.0, 30.0);
+    const double side = rng.uniform(-4.0, 4.0);
+    points.push_back(Eigen::Vector3d(0, along, 0) + side * across);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 10; ++i) {
+    ScenePose c;
+    c.p_wc = Eigen::Vector3d(0.0, 1.0 * i, 1.6);
+    c.R_wc = lookAt(c.p_wc, c.p_wc + Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.ground == SceneGround::kPlane);
+  CHECK(f.plane_up_angle_deg == Approx(7.0).margin(0.01));
+  CHECK(f.plane_normal.dot(Eigen::Vector3d::UnitZ()) > std::cos(0.5 * M_PI / 180.0));
+  SceneFrameOptions unlevelled;
+  unlevelled.level_ground_with_cameras = false;
+  const SceneFrame g = computeSceneFrame(points, {}, cameras, unlevelled);
+  CHECK(g.plane_normal.dot(normal) == Approx(1.0).margin(1e-9));
+}

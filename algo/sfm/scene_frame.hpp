@@ -5,19 +5,28 @@
 // use directly.
 //
 // Modes
-// - plane (default): a dominant plane is fitted to the scene points by RANSAC (the ground or a
-//   table; a level plane is preferred to a larger wall, see SceneFrameOptions::prefer_ground).
-//   Scene +Z is the plane normal, oriented towards the cameras (so +Z is "up" and the cameras are
-//   at z > 0, as in Blender); scene +X is the first camera's x axis (image right) projected onto
-//   the plane; +Y = Z x X. The origin is the centroid of the plane's inlier points (it lies on the
-//   least-squares plane). The scale makes the median camera-to-plane distance 1.
+// - plane (default): "up" comes from the cameras and the ground from the points (issue 23).
+//   Hand-held, tripod and vehicle footage is shot roughly level, so the robust mean of the
+//   cameras' image-up axes (each camera's -y in the world) is the scene's up, and the spread of
+//   those axes says how much to trust it. The ground is the best-supported plane (RANSAC) whose
+//   normal is within SceneFrameOptions::ground_max_tilt_deg of that up, with the cameras above it
+//   and few points below it (a floor, a road, a table top: not a wall, not a ceiling, not a slice
+//   through an object). Scene +Z is its normal, oriented towards the cameras; the origin is the
+//   centroid of its inlier points; the scale makes the median camera-to-plane distance 1.
+//   Without such a plane (a wall-only shot, an object on a turntable), +Z is the cameras' up and
+//   the ground is the horizontal plane under the reconstructed points (a low quantile of their
+//   heights), the origin below the points' median, the scale again the median camera height.
+//   When the cameras disagree about up (confidence below min_up_confidence), the dominant plane
+//   is used as before (normal towards the cameras), and failing that the first camera's frame.
+//   In every ground frame +X is the first camera's x axis (image right) projected onto the
+//   ground and +Y = Z x X.
 // - first-camera: the first camera's frame: origin at its centre, its axes (x right, y down,
 //   z forward, so "up" is -Y), and the scale makes the median depth of the points in front of it 1
 //   (if no point is in front, the distance from the first camera to the farthest camera is 1).
-// - track:ID: origin at the point with that id; orientation and scale from the plane when one is
+// - track:ID: origin at the point with that id; orientation and scale from the ground when one is
 //   found, otherwise the first camera's axes and scale.
 // A plane is "found" when it holds enough inliers (SceneFrameOptions) and the cameras are not on
-// it; otherwise the first-camera frame is used and the status says so.
+// it.
 
 #include <cstdint>
 #include <span>
@@ -55,20 +64,36 @@ struct SceneFrameOptions {
   int min_plane_inliers = 12;       ///< a plane needs at least this many inliers ...
   double min_plane_fraction = 0.2;  ///< ... and this fraction of the points
   uint64_t seed = 0x5eed;           ///< RANSAC samples are deterministic for a seed
-  /// Prefer a ground to a wall: when the dominant plane is tilted more than ground_max_tilt_deg
-  /// from the cameras' mean up direction (their image -y), a level plane holding at least
-  /// ground_min_ratio of the dominant plane's inliers is used instead (the issue asks for "the
-  /// ground or a table").
-  bool prefer_ground = true;
+  /// Up from the cameras (issue 23): when false, the dominant plane is the ground whatever its
+  /// tilt (the behaviour before issue 23).
+  bool up_from_cameras = true;
+  /// The cameras' up is trusted when the length of the mean of their unit image-up axes (1: all
+  /// parallel, 0: no agreement) is at least this.
+  double min_up_confidence = 0.5;
+  /// A ground plane's normal is at most this far from the cameras' up.
   double ground_max_tilt_deg = 30.0;
-  double ground_min_ratio = 0.3;
+  /// A ground has at most this fraction of the points clearly (3 inlier thresholds) below it.
+  double ground_max_below_fraction = 0.2;
+  /// Level the ground plane's normal with the cameras' x axes (image right), which stay level in
+  /// footage shot without roll: removes the roll of a plane fitted to a grazing band of ground.
+  bool level_ground_with_cameras = true;
+  /// Without a level plane, the ground height is this quantile of the points' heights along up.
+  double ground_height_quantile = 0.05;
+};
+
+/// What the scene's ground (z = 0, +z up) was taken from.
+enum class SceneGround {
+  kNone,     ///< no ground: the first camera's frame (-y up)
+  kPlane,    ///< a fitted plane (level with the cameras' up when that was known)
+  kCameras,  ///< the cameras' up, the ground under the reconstructed points
 };
 
 enum class SceneFrameStatus {
-  kOk,             ///< the requested frame was built
-  kPlaneNotFound,  ///< no dominant plane (or cameras on it): first-camera axes/scale used
-  kTrackNotFound,  ///< track:ID names no point: the plane (or first-camera) frame was used
-  kInvalidInput,   ///< no camera or non-finite input: identity returned
+  kOk,                 ///< the requested frame was built
+  kPlaneNotFound,      ///< no dominant plane (or cameras on it): first-camera axes/scale used
+  kGroundFromCameras,  ///< no level plane: up from the cameras, the ground under the points
+  kTrackNotFound,      ///< track:ID names no point: the plane (or first-camera) frame was used
+  kInvalidInput,       ///< no camera or non-finite input: identity returned
 };
 
 struct SceneFrame {
@@ -80,6 +105,16 @@ struct SceneFrame {
   double plane_offset = 0.0;                                ///< plane: normal . X = offset (world)
   int plane_inliers = 0;
   double inlier_threshold = 0.0;  ///< world units
+  SceneGround ground = SceneGround::kNone;
+  /// The cameras' up (world, unit; zero when the cameras did not define one), the length of the
+  /// mean of their image-up axes (0..1, the confidence) and the median angle of those axes to
+  /// the robust mean (degrees).
+  Eigen::Vector3d camera_up = Eigen::Vector3d::Zero();
+  double up_confidence = 0.0;
+  double up_spread_deg = 0.0;
+  /// Angle between the fitted plane's normal (before levelling) and camera_up (degrees), NaN
+  /// without either. plane_normal is the levelled normal.
+  double plane_up_angle_deg = 0.0;
 };
 
 /// Chooses the scene frame (see the file comment). `point_ids` may be empty unless the origin is

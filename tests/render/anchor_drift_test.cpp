@@ -106,12 +106,12 @@ AnchorDrift measureAnchorDrift(const std::string& clip, const std::string& solve
     return S.topLeftCorner<3, 3>() * x + S.topRightCorner<3, 1>();
   };
 
-  // The anchor: the scene-frame origin (default --object-at 0,0,0), drawn at `drawn[i]` in frame
-  // i. Where does it stand in the true world? The point A* whose projections by the true cameras
-  // come closest to the drawn ones (DLT + Gauss-Newton, algo/geometry/triangulation). A perfect
-  // solve draws every frame exactly at the true projection of one fixed point; the drift is how
-  // far the drawn anchor strays from the true projections of A*, i.e. how much it slides over the
-  // real scene. (The similarity above gives A* too, but fitted to the camera centres it carries
+  // The anchor: the scene-frame origin (a fixed scene point, like any anchor), drawn at `drawn[i]`
+  // in frame i. Where does it stand in the true world? The point A* whose projections by the true
+  // cameras come closest to the drawn ones (DLT + Gauss-Newton, algo/geometry/triangulation). A
+  // perfect solve draws every frame exactly at the true projection of one fixed point; the drift is
+  // how far the drawn anchor strays from the true projections of A*, i.e. how much it slides over
+  // the real scene. (The similarity above gives A* too, but fitted to the camera centres it carries
   // their small errors into a point metres away; it is printed for reference.)
   const Eigen::Vector3d anchor_scene = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector2d> drawn(pairs.size());

@@ -33,6 +33,7 @@ Reconstruction makeReconstruction() {
   rec.focal_source = "self-calibrated";
   rec.motion = "general";
   rec.plane_found = true;
+  rec.ground = "plane";
   rec.message = "a <note> & more";
   std::mt19937 rng(7);
   auto uniform = [&](double lo, double hi) {

@@ -201,7 +201,9 @@ TEST_CASE("no plane falls back to the first-camera frame with a status", "[scene
   std::vector<ScenePose> cams(3);
   cams[1].p_wc = Eigen::Vector3d(0.5, 0, 0);
   cams[2].p_wc = Eigen::Vector3d(1.0, 0.1, 0);
-  const SceneFrame f = computeSceneFrame(blob, {}, cams, SceneFrameOptions{});
+  SceneFrameOptions dominant_plane_only;
+  dominant_plane_only.up_from_cameras = false;  // the fallback before issue 23
+  const SceneFrame f = computeSceneFrame(blob, {}, cams, dominant_plane_only);
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
   CHECK_FALSE(f.plane_found);
   CHECK(f.origin_used == SceneOrigin::kFirstCamera);
@@ -209,15 +211,31 @@ TEST_CASE("no plane falls back to the first-camera frame with a status", "[scene
   std::vector<double> depths;
   for (const auto& X : blob) depths.push_back(X.z());
   CHECK(f.world_to_scene.scale == Approx(1.0 / median(depths)));
+
+  // With the cameras' up (their -y, the world's -y here) the ground is under the blob instead.
+  const SceneFrame g = computeSceneFrame(blob, {}, cams, SceneFrameOptions{});
+  CHECK(g.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(g.ground == SceneGround::kCameras);
+  CHECK((g.world_to_scene.R.row(2).transpose() + Eigen::Vector3d::UnitY()).norm() < 1e-9);
+  CHECK(g.up_confidence == Approx(1.0));
+  int below = 0;
+  for (const auto& X : blob) below += g.world_to_scene.apply(X).z() < 0.0 ? 1 : 0;
+  CHECK(below <= 20);  // the 5 % quantile of the heights
 }
 
 TEST_CASE("cameras on the plane and too few points fall back", "[scene_frame]") {
   PlaneScene scene(4, 100, 0);
   std::vector<ScenePose> on_plane = scene.cameras;
   for (auto& c : on_plane) c.p_wc -= scene.normal * (scene.normal.dot(c.p_wc) - scene.offset);
-  SceneFrame f = computeSceneFrame(scene.points, {}, on_plane, SceneFrameOptions{});
+  SceneFrameOptions dominant_plane_only;
+  dominant_plane_only.up_from_cameras = false;  // the fallback before issue 23
+  SceneFrame f = computeSceneFrame(scene.points, {}, on_plane, dominant_plane_only);
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
   CHECK(f.origin_used == SceneOrigin::kFirstCamera);
+  // With the cameras' up: the plane is not a ground (the cameras are on it), and the horizontal
+  // ground under the points has the cameras on it too: the first-camera frame again.
+  f = computeSceneFrame(scene.points, {}, on_plane, SceneFrameOptions{});
+  CHECK_FALSE(f.plane_found);
 
   // Two points: no plane; none in front of the first camera: scale from the farthest camera.
   std::vector<Eigen::Vector3d> two = {Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(1, 0, -2)};
@@ -225,6 +243,7 @@ TEST_CASE("cameras on the plane and too few points fall back", "[scene_frame]") 
   cams[1].p_wc = Eigen::Vector3d(0, 0.5, 0);
   f = computeSceneFrame(two, {}, cams, SceneFrameOptions{});
   CHECK(f.status == SceneFrameStatus::kPlaneNotFound);
+  CHECK(f.ground == SceneGround::kNone);
   CHECK(f.world_to_scene.scale == Approx(2.0));
 }
 
@@ -320,15 +339,137 @@ TEST_CASE("plane frame prefers the ground to a larger wall", "[scene_frame]") {
   for (const auto& c : cameras) heights.push_back(c.p_wc.z());
   CHECK(f.world_to_scene.scale == Approx(1.0 / median(heights)));
 
-  options.prefer_ground = false;  // the dominant plane is the wall
+  options.up_from_cameras = false;  // the dominant plane is the wall
   f = computeSceneFrame(points, {}, cameras, options);
   REQUIRE(f.status == SceneFrameStatus::kOk);
   CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);  // facing the cameras
   CHECK(f.plane_inliers == 300);
+  CHECK(f.ground == SceneGround::kPlane);
 
-  // A ground with too few points (below ground_min_ratio of the wall's) loses to the wall.
+  // A floor too small to count as a plane (60 of 360 points, below min_plane_fraction): up comes
+  // from the cameras and the ground is still under the points, at the floor's height.
   roomCorner(60, 300, points, cameras);
   f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
-  REQUIRE(f.status == SceneFrameStatus::kOk);
-  CHECK((f.plane_normal + Eigen::Vector3d::UnitY()).norm() < 1e-9);
+  REQUIRE(f.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(f.ground == SceneGround::kCameras);
+  CHECK_FALSE(f.plane_found);
+  // The cameras look 7 degrees down at the wall: their mean image-up leans that much towards
+  // the wall (the bias of an up from the cameras alone), so the ground is level within 10 degrees.
+  CHECK(f.plane_normal.dot(Eigen::Vector3d::UnitZ()) > std::cos(10.0 * M_PI / 180.0));
+  CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d(0.0, 1.0, 0.0)).z()) < 0.15);
+}
+
+TEST_CASE("wall-only shot: up from the cameras, the ground under the wall", "[scene_frame]") {
+  // A textured wall (y = 3) filmed by level cameras walking along it: the only plane is vertical.
+  synth::SplitMix64 rng(31);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 300; ++i) {
+    const double z = rng.uniform(0.5, 3.0);
+    const double x = rng.uniform(-3, 3);
+    points.emplace_back(x, 3.0, z);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 10; ++i) {
+    ScenePose c;
+    c.p_wc = Eigen::Vector3d(-1.0 + 0.2 * i, -1.0, 1.6);
+    c.R_wc =
+        lookAt(c.p_wc, c.p_wc + Eigen::Vector3d(0.1 * (i - 5), 1.0, 0.0), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.status == SceneFrameStatus::kGroundFromCameras);
+  CHECK(f.ground == SceneGround::kCameras);
+  CHECK(f.up_confidence == Approx(1.0).margin(1e-9));
+  // Up within 2 degrees of the true up, the ground at the wall's lowest points, cameras above.
+  CHECK(f.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(2.0 * M_PI / 180.0));
+  std::vector<double> z;
+  for (const auto& X : points) z.push_back(f.world_to_scene.apply(X).z());
+  std::sort(z.begin(), z.end());
+  CHECK(z[z.size() / 20] == Approx(0.0).margin(1e-9));
+  for (const auto& c : cameras) CHECK(f.world_to_scene.apply(c.p_wc).z() > 0.0);
+  // Cameras looking 10 degrees down at the wall: their image-up axes lean 10 degrees towards it,
+  // but up lies in the (vertical) wall, which takes the lean out.
+  std::vector<ScenePose> looking_down = cameras;
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const double down = std::tan(10.0 * M_PI / 180.0);
+    const ScenePose& c = cameras[i];
+    looking_down[i].R_wc =
+        lookAt(c.p_wc, c.p_wc + Eigen::Vector3d(0.1 * (static_cast<double>(i) - 5), 1.0, -down),
+               Eigen::Vector3d::UnitZ());
+  }
+  const SceneFrame d = computeSceneFrame(points, {}, looking_down, SceneFrameOptions{});
+  REQUIRE(d.ground == SceneGround::kCameras);
+  CHECK(d.up_spread_deg > 3.0);  // the lean shows in the spread
+  CHECK(d.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(0.5 * M_PI / 180.0));
+  // Before issue 23 the wall was the ground: +z pointed at the cameras, horizontally.
+  SceneFrameOptions old;
+  old.up_from_cameras = false;
+  const SceneFrame g = computeSceneFrame(points, {}, cameras, old);
+  CHECK(std::abs(g.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ())) < 1e-6);
+}
+
+TEST_CASE("turntable: up from a ring of cameras looking down at an object", "[scene_frame]") {
+  // An object (points filling a box, no dominant plane) seen from a full ring of cameras 35
+  // degrees above it: each camera's image-up leans inwards, their mean is vertical.
+  synth::SplitMix64 rng(41);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 400; ++i) {
+    const double z = rng.uniform(0.0, 0.3);
+    const double y = rng.uniform(-0.1, 0.1);
+    const double x = rng.uniform(-0.1, 0.1);
+    points.emplace_back(x, y, z);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 24; ++i) {
+    const double a = 2.0 * M_PI * i / 24.0;
+    const double elevation = 35.0 * M_PI / 180.0;
+    ScenePose c;
+    c.p_wc = 0.6 * Eigen::Vector3d(std::cos(elevation) * std::cos(a),
+                                   std::cos(elevation) * std::sin(a), std::sin(elevation));
+    c.R_wc = lookAt(c.p_wc, Eigen::Vector3d(0, 0, 0.15), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.ground != SceneGround::kNone);
+  CHECK(f.world_to_scene.R.row(2).dot(Eigen::Vector3d::UnitZ()) > std::cos(2.0 * M_PI / 180.0));
+  // Each camera looks down at the object's middle by atan(0.6 sin 35 - 0.15, 0.6 cos 35): that
+  // lean is the spread of the image-up axes, and the confidence is its cosine.
+  const double down =
+      std::atan2(0.6 * std::sin(35.0 * M_PI / 180.0) - 0.15, 0.6 * std::cos(35.0 * M_PI / 180.0));
+  CHECK(f.up_spread_deg == Approx(down * 180.0 / M_PI).margin(0.01));
+  CHECK(f.up_confidence == Approx(std::cos(down)).margin(1e-6));
+  // The ground is at the object's base (within the 5 % quantile of its height, 0.015).
+  CHECK(std::abs(f.world_to_scene.apply(Eigen::Vector3d::Zero()).z()) <
+        0.03 * f.world_to_scene.scale);
+}
+
+TEST_CASE("a rolled ground fit is levelled with the cameras' x axes", "[scene_frame]") {
+  // A road band seen by level cameras driving along +y; the fitted plane rolls 7 degrees about
+  // the driving direction (as a plane through road, kerb and verge can). The cameras' x axes are
+  // level, so the ground's normal follows them; the roll is reported as the plane-to-up angle.
+  synth::SplitMix64 rng(51);
+  const double roll = 7.0 * M_PI / 180.0;
+  const Eigen::Vector3d normal(std::sin(roll), 0.0, std::cos(roll));
+  const Eigen::Vector3d across = Eigen::Vector3d::UnitY().cross(normal);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 300; ++i) {
+    const double along = rng.uniform(2.0, 30.0);
+    const double side = rng.uniform(-4.0, 4.0);
+    points.push_back(Eigen::Vector3d(0, along, 0) + side * across);
+  }
+  std::vector<ScenePose> cameras;
+  for (int i = 0; i < 10; ++i) {
+    ScenePose c;
+    c.p_wc = Eigen::Vector3d(0.0, 1.0 * i, 1.6);
+    c.R_wc = lookAt(c.p_wc, c.p_wc + Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ());
+    cameras.push_back(c);
+  }
+  const SceneFrame f = computeSceneFrame(points, {}, cameras, SceneFrameOptions{});
+  REQUIRE(f.ground == SceneGround::kPlane);
+  CHECK(f.plane_up_angle_deg == Approx(7.0).margin(0.01));
+  CHECK(f.plane_normal.dot(Eigen::Vector3d::UnitZ()) > std::cos(0.5 * M_PI / 180.0));
+  SceneFrameOptions unlevelled;
+  unlevelled.level_ground_with_cameras = false;
+  const SceneFrame g = computeSceneFrame(points, {}, cameras, unlevelled);
+  CHECK(g.plane_normal.dot(normal) == Approx(1.0).margin(1e-9));
 }

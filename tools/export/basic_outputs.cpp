@@ -213,8 +213,29 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("origin", rec.origin);
   j.field("plane_found", rec.plane_found);
   if (!rec.origin_note.empty()) j.field("note", rec.origin_note);
-  // Plane-based frames have +z up; the first-camera frame keeps the camera axes (-y up).
-  j.field("up", std::string(rec.plane_found ? "+z" : "-y"));
+  // Ground frames have +z up; the first-camera frame keeps the camera axes (-y up).
+  j.field("up", std::string(rec.ground != "none" ? "+z" : "-y"));
+  j.field("ground", rec.ground);
+  j.field("up_confidence", rec.up_confidence);
+  j.field("up_spread_deg", rec.up_spread_deg);
+  j.field("plane_up_angle_deg", rec.plane_up_angle_deg);
+  if (!rec.object.placement.empty()) {
+    const AugmentedObject& o = rec.object;
+    j.key("object");
+    j.beginObject();
+    j.field("placement", o.placement);
+    j.key("at");
+    j.beginArray();
+    for (int a = 0; a < 3; ++a) j.value(o.at[a]);
+    j.endArray();
+    j.field("scale", o.scale);
+    j.field("height", o.height);
+    j.field("solved_frames", o.solved_frames);
+    j.field("visible_frames", o.visible_frames);
+    j.field("median_coverage", o.median_coverage);
+    j.field("upright_cosine_median", o.upright_cosine_median);
+    j.endObject();
+  }
   j.endObject();
   if (!rec.focal_fallback.empty()) j.field("focal_fallback", rec.focal_fallback);
   if (!rec.focal_profile.empty()) {

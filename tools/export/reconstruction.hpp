@@ -94,6 +94,26 @@ struct StageSeconds {
   double total = 0.0;
 };
 
+/// Below this confidence of the cameras' up estimate the report and the command warn that the
+/// scene's up may be wrong (the cameras' image-up axes spread over more than about 35 degrees).
+constexpr double kWeakUpConfidence = 0.8;
+
+/// The virtual object drawn into the augmented frames (--render; tools/solve/object_placement.hpp)
+/// and how well it shows: the figures of issue 23.
+struct AugmentedObject {
+  std::string placement;  ///< "auto" (chosen from the solve), "given" (--object-at/--object-scale)
+                          ///< or "" (nothing rendered)
+  Eigen::Vector3d at = Eigen::Vector3d::Zero();              ///< scene frame, on the ground
+  double scale = 1.0;                                        ///< the object's size factor
+  double height = std::numeric_limits<double>::quiet_NaN();  ///< scene units, base to top
+  int solved_frames = 0;                                     ///< frames with a camera pose
+  int visible_frames = 0;  ///< of those, frames where it covers >= 0.5 % of the image
+  double median_coverage = std::numeric_limits<double>::quiet_NaN();  ///< image fraction, 0..1
+  /// Median over the solved frames of the cosine between the scene's +z drawn at the object and
+  /// the image's up direction (1: upright, -1: upside down).
+  double upright_cosine_median = std::numeric_limits<double>::quiet_NaN();
+};
+
 /// The whole solve. Fields left at their defaults are written as "unknown" (null in JSON).
 struct Reconstruction {
   CameraIntrinsics intrinsics;        ///< includes width, height, k1, k2
@@ -142,6 +162,14 @@ struct Reconstruction {
   std::string origin = "plane";  ///< "plane", "first-camera" or "track:ID"
   bool plane_found = false;
   std::string origin_note;  ///< e.g. "no dominant plane: first-camera frame used"
+  /// What the ground (z = 0, +z up) came from: "plane", "cameras" (the cameras' up, the ground
+  /// under the points) or "none" (the first camera's frame, -y up).
+  std::string ground = "none";
+  /// The cameras' up estimate: confidence 0..1 and spread (degrees), NaN when not estimated.
+  double up_confidence = std::numeric_limits<double>::quiet_NaN();
+  double up_spread_deg = std::numeric_limits<double>::quiet_NaN();
+  double plane_up_angle_deg = std::numeric_limits<double>::quiet_NaN();  ///< plane normal to up
+  AugmentedObject object;
 
   /// Optional image file names per frame index (basename, e.g. "000012.png"), used by COLMAP's
   /// images.txt; frames beyond the vector are named from the index by ExportOptions.

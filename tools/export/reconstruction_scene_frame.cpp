@@ -69,6 +69,14 @@ SceneFrame applySceneFrame(Reconstruction& rec, const SceneFrameOptions& options
       break;
   }
   rec.plane_found = frame.plane_found;
+  rec.ground = frame.ground == SceneGround::kPlane     ? "plane"
+               : frame.ground == SceneGround::kCameras ? "cameras"
+                                                       : "none";
+  if (options.up_from_cameras && options.origin != SceneOrigin::kFirstCamera) {
+    rec.up_confidence = frame.up_confidence;
+    rec.up_spread_deg = frame.up_spread_deg;
+  }
+  rec.plane_up_angle_deg = frame.plane_up_angle_deg;
   rec.origin_note = frame.status == SceneFrameStatus::kOk ? std::string() : describe(frame.status);
   return frame;
 }

@@ -288,8 +288,22 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
   std::snprintf(buf, sizeof(buf), "%d x %d, cx %.2f, cy %.2f, k1 %.5g, k2 %.5g", k.width, k.height,
                 k.cx, k.cy, k.k1, k.k2);
   h += row("intrinsics", "image and intrinsics", buf);
-  std::string frame =
-      rec.origin + (rec.plane_found ? ", ground plane found (+z up)" : ", no plane");
+  std::string frame = rec.origin;
+  if (rec.ground == "plane") {
+    frame += ", ground plane found (+z up";
+    if (std::isfinite(rec.plane_up_angle_deg))
+      frame += ", " + fmt(1, rec.plane_up_angle_deg) + " deg from the cameras' up";
+    frame += ")";
+  } else if (rec.ground == "cameras") {
+    frame += ", no level plane: +z is the cameras' up, the ground under the points";
+  } else {
+    frame += ", no plane";
+  }
+  if (std::isfinite(rec.up_confidence)) {
+    frame += "; up confidence " + fmt(2, rec.up_confidence) + ", spread " +
+             fmt(1, rec.up_spread_deg) + " deg";
+    if (rec.up_confidence < io::kWeakUpConfidence) frame += " (weak: check the augmented frames)";
+  }
   if (!rec.origin_note.empty()) frame += " (" + rec.origin_note + ")";
   h += row("scene_frame", "scene frame", frame);
   h += "</table>\n<table class=\"summary\" id=\"seconds\">\n<tr><th colspan=\"2\">seconds per "
@@ -429,7 +443,7 @@ std::string focalSection(const io::Reconstruction& rec) {
 std::string topViewSection(const io::Reconstruction& rec, const ReportOptions& options) {
   // Scene frame: with a ground plane z is up, so the top view is the x-y plane; the first-camera
   // frame keeps the camera axes (y down), so its top view is x-z.
-  const bool z_up = rec.plane_found;
+  const bool z_up = rec.ground != "none";
   auto u = [](const Eigen::Vector3d& p) { return p.x(); };
   auto v = [&](const Eigen::Vector3d& p) { return z_up ? p.y() : p.z(); };
   std::vector<double> pu, pv, cu, cv;

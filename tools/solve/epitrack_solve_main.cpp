@@ -28,8 +28,7 @@ bool parseVector(const std::string& text, Eigen::Vector3d& v, std::string& error
 int main(int argc, char** argv) {
   epitrack::tools::SolveCommandOptions o;
   // A sparse 2D tracker sees far fewer corners on a grazing floor than on a facing wall: accept a
-  // level plane with a tenth of the wall's support as the ground.
-  o.scene.ground_min_ratio = 0.1;
+  // level plane with a twentieth of the points as the ground.
   o.scene.min_plane_fraction = 0.05;
   o.tracker.max_features = epitrack::tools::kSolveFeatures;
   std::string distortion = "none";
@@ -78,9 +77,19 @@ int main(int argc, char** argv) {
             "tracks: augmented frames side by side with the tracked features (green: fit the "
             "solve, orange: outliers, red: no 3D point); default none",
             &o.overlay);
-  cl.option("object-at", "X,Y,Z", "where the object stands in the scene frame (default 0,0,0)",
-            [&](const std::string& v, std::string& e) { return parseVector(v, o.object_at, e); });
-  cl.real("object-scale", "S", "object size factor (default 1)", &o.object_scale, 1e-6, 1e6);
+  cl.option("object-at", "X,Y,Z",
+            "where the object stands in the scene frame (default: on the ground where it is in "
+            "view in the most frames)",
+            [&](const std::string& v, std::string& e) {
+              Eigen::Vector3d at;
+              if (!parseVector(v, at, e)) return false;
+              o.object_at = at;
+              return true;
+            });
+  double object_scale = 0.0;  // 0: not given
+  cl.real("object-scale", "S",
+          "object size factor (default: a quarter of the image height at its median distance)",
+          &object_scale, 1e-6, 1e6);
   std::string matcher = "auto";
   cl.choice("matcher", {"lk", "descriptors", "auto"},
             "2D tracks: lk = pyramidal Lucas-Kanade frame to frame (video); descriptors = "
@@ -125,6 +134,7 @@ int main(int argc, char** argv) {
   std::string error;
   if (!epitrack::io::parseOriginOption(o.origin_text, o.scene, error))
     return cl.usageError("--origin: " + error);
+  if (object_scale > 0.0) o.object_scale = object_scale;
   o.distortion = distortion == "k1k2" ? 2 : distortion == "k1" ? 1 : 0;
   epitrack::tools::parseMatcher(matcher, o.matcher);
   o.solver.seed = static_cast<uint64_t>(seed);

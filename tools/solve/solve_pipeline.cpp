@@ -25,6 +25,7 @@
 #include "tools/export/reconstruction_scene_frame.hpp"
 #include "tools/export/reprojection_errors.hpp"
 #include "tools/render/avi_writer.hpp"
+#include "tools/render/object_placement.hpp"
 #include "tools/render/overlay_renderer.hpp"
 #include "tools/render/report_writer.hpp"
 #include "tools/render/track_overlay.hpp"
@@ -32,10 +33,7 @@
 namespace epitrack::tools {
 
 using render::LineSet;
-using render::makeAxes;
-using render::makeCube;
 using render::makeGroundGrid;
-using render::makeTowers;
 using render::Mesh;
 using render::MjpegAviWriter;
 using render::OverlayRenderer;
@@ -60,6 +58,23 @@ class StageClock {
 };
 
 void fail(const char* what) { std::fprintf(stderr, "epitrack-solve: %s\n", what); }
+
+// Issue 23: say on stderr when the scene's up is a weak guess or the object hardly shows, so a
+// first run on one's own clip does not silently give a wrong picture.
+void warnAboutObject(const io::Reconstruction& rec, io::ProgressReporter::Mode progress) {
+  if (progress == io::ProgressReporter::Mode::kQuiet) return;
+  if (std::isfinite(rec.up_confidence) && rec.up_confidence < io::kWeakUpConfidence)
+    std::fprintf(stderr,
+                 "epitrack-solve: warning: the cameras disagree about up (confidence %.2f): the "
+                 "ground may be tilted; check the augmented frames or give --origin\n",
+                 rec.up_confidence);
+  const io::AugmentedObject& obj = rec.object;
+  if (obj.solved_frames > 0 && 2 * obj.visible_frames < obj.solved_frames)
+    std::fprintf(stderr,
+                 "epitrack-solve: warning: the object covers >= 0.5 %% of the image in only %d of "
+                 "%d frames; try --object-at / --object-scale\n",
+                 obj.visible_frames, obj.solved_frames);
+}
 
 // Every name epitrack-solve writes in its output directory, besides augmented/NNNNNN.jpg.
 std::vector<std::string> solveOutputNames() {
@@ -537,7 +552,14 @@ int runSolve(const SolveCommandOptions& o) {
   report.input = o.input;
   report.render_object = o.render;
   report.has_object = o.render != "none";
-  report.object_at = o.object_at;
+  if (report.has_object && solver.solvedFrames() > 0) {
+    rec.object = render::placeObject(rec, o.render, o.object_at, o.object_scale,
+                                     render::ObjectPlacementOptions{});
+    render::measureObjectView(
+        rec, render::makeObjectMesh(o.render, rec.object.at, rec.object.scale), rec.object);
+    warnAboutObject(rec, o.progress);
+  }
+  report.object_at = rec.object.at;
   if (draw_frames && solver.solvedFrames() > 0 && stop_stage.empty()) {
     const std::string aug_dir = o.out_dir + "/augmented";
     if (!hal::makeDirectories(aug_dir, error)) {
@@ -553,13 +575,10 @@ int runSolve(const SolveCommandOptions& o) {
       }
     }
     OverlayRenderer renderer(rec.intrinsics);
-    const Mesh mesh = o.render == "towers" ? makeTowers(o.object_at, o.object_scale)
-                      : o.render == "cube" ? makeCube(o.object_at, o.object_scale)
-                      : o.render == "axes" ? makeAxes(o.object_at, o.object_scale)
-                                           : Mesh{};
+    const Mesh mesh = render::makeObjectMesh(o.render, rec.object.at, rec.object.scale);
     const LineSet grid = o.render == "none" ? LineSet{}
-                                            : makeGroundGrid(o.object_at, 1.0 * o.object_scale,
-                                                             0.25 * o.object_scale);
+                                            : makeGroundGrid(rec.object.at, 1.0 * rec.object.scale,
+                                                             0.25 * rec.object.scale);
     Image<Rgb8> rgb(width, height);
     // --overlay tracks: the tracked features on the right, each observation classified by its
     // reprojection error in the exported model (the threshold of the report's statistics).

@@ -3,6 +3,7 @@
 // The offline pipeline behind epitrack-solve: INPUT -> 2D tracks of the whole clip -> Solver ->
 // Reconstruction (tools/export) in the scene frame -> outputs and augmented frames.
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,8 +32,9 @@ struct SolveCommandOptions {
   std::string origin_text = "plane";
   std::string render = "none";   ///< towers | cube | axes | none
   std::string overlay = "none";  ///< tracks: augmented frames side by side with the 2D tracks
-  Eigen::Vector3d object_at = Eigen::Vector3d::Zero();
-  double object_scale = 1.0;
+  /// --object-at / --object-scale; what is not given is chosen (tools/render/object_placement.hpp).
+  std::optional<Eigen::Vector3d> object_at;
+  std::optional<double> object_scale;
   FeatureTrackerOptions tracker;
   Matcher matcher = Matcher::kAuto;   ///< --matcher: LK, descriptor matching, or chosen (auto)
   DescriptorTrackerOptions matching;  ///< the descriptor matcher (key frames)

@@ -15,11 +15,15 @@
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/math/median.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
+#include "algo/sfm/reprojection.hpp"
+#include "algo/sfm/two_view_initialization.hpp"
 
 namespace epitrack {
 
-const char* toString(Solver::Status s) {
+const char* toString(SolverStatus s) {
   switch (s) {
     case Solver::Status::kOk:
       return "ok";
@@ -33,6 +37,46 @@ const char* toString(Solver::Status s) {
       return "planar-scene";
     case Solver::Status::kInitFailed:
       return "initialization-failed";
+    case Solver::Status::kPartial:
+      return "partial";
+  }
+  return "unknown";
+}
+
+const char* toString(MotionClass m) {
+  switch (m) {
+    case MotionClass::kGeneral:
+      return "general";
+    case MotionClass::kRotationOrPlane:
+      return "rotation-or-plane";
+    case MotionClass::kRotationOnly:
+      return "rotation-only";
+  }
+  return "unknown";
+}
+
+const char* toString(FocalSource s) {
+  switch (s) {
+    case FocalSource::kGiven:
+      return "given";
+    case FocalSource::kSelfCalibrated:
+      return "self-calibrated";
+    case FocalSource::kFallback:
+      return "fallback";
+  }
+  return "unknown";
+}
+
+const char* toString(FocalFallback f) {
+  switch (f) {
+    case FocalFallback::kNone:
+      return "";
+    case FocalFallback::kProfile:
+      return "profile";
+    case FocalFallback::kProfileFlat:
+      return "profile-flat";
+    case FocalFallback::kFieldOfView:
+      return "field-of-view";
   }
   return "unknown";
 }
@@ -52,20 +96,8 @@ double displacement(const std::vector<Eigen::Vector2d>& a, const std::vector<Eig
   return *it;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
-PoseCw fromBa(const BaCamera& c) {
-  PoseCw p;
-  p.R_cw = c.R_cw;
-  p.t_cw = c.t_cw;
-  return p;
-}
+// The upper median of a copy (the callers' vectors are theirs to keep).
+double median(std::vector<double> v) { return upperMedian(v); }
 
 }  // namespace
 
@@ -107,6 +139,33 @@ int Solver::commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
     if (x2 != nullptr) x2->emplace_back(ob->x, ob->y);
   }
   return n;
+}
+
+void Solver::calibrateAsGiven() {
+  f_ = options_.focal_px;
+  focal_source_ = FocalSource::kGiven;
+  focal_observable_ = true;
+}
+
+SolverSummary Solver::summary() const {
+  SolverSummary s;
+  s.status = status_;
+  s.message = message_;
+  s.focal_px = f_;
+  s.aspect = aspect_;
+  s.cx = cx_;
+  s.cy = cy_;
+  s.k1 = k1_;
+  s.k2 = k2_;
+  s.focal_source = focal_source_;
+  s.focal_observable = focal_observable_;
+  s.focal_fallback = focal_fallback_;
+  s.motion = motion_;
+  s.frames = tracks_.frameCount();
+  s.solved_frames = solvedFrames();
+  s.initial_pair_a = init_a_;
+  s.initial_pair_b = init_b_;
+  return s;
 }
 
 int Solver::solvedFrames() const {
@@ -194,11 +253,11 @@ bool Solver::calibrate() {
     return false;
   }
   if (!pair_focals_.empty() && homography_pairs * 10 >= static_cast<int>(pair_focals_.size()) * 8)
-    motion_ = "rotation-or-plane";
+    motion_ = MotionClass::kRotationOrPlane;
 
   if (options_.focal_px > 0.0) {
     f_ = options_.focal_px;
-    focal_source_ = "given";
+    focal_source_ = FocalSource::kGiven;
     focal_observable_ = true;
     return true;
   }
@@ -212,132 +271,16 @@ bool Solver::calibrate() {
   }
   if (r.observable) {
     f_ = r.focal_px;
-    focal_source_ = "self-calibrated";
+    focal_source_ = FocalSource::kSelfCalibrated;
     focal_observable_ = true;
   } else {
     f_ = options_.fallback_focal_widths * std::max(width_, height_);
-    focal_source_ = "fallback";
+    focal_source_ = FocalSource::kFallback;
     focal_observable_ = false;
-    focal_fallback_ = "field-of-view";
+    focal_fallback_ = FocalFallback::kFieldOfView;
     sweep_pending_ = options_.focal_sweep;
   }
   return true;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Focal profile: when F cannot observe the focal, the reprojection error of whole solves can.
-// The paper's self-calibration (§5.2) uses pairs of views; an orbit whose optical axes meet in a
-// point is critical for it, but over many views a 3D scene seen with the wrong focal does not
-// fit: the median reprojection error of the whole solve has a minimum at the true focal
-// (measured on the exact orbit: 0.03 px at 600 px against 0.12-0.45 px at 400-850 px).
-
-FocalProfilePoint Solver::probeFocal(const TrackTable& tracks, double focal, bool refine) const {
-  SolverOptions o = options_;
-  o.focal_px = focal;
-  o.refine_given_focal = refine;
-  o.focal_sweep = false;
-  Solver probe(tracks, width_, height_, o);
-  FocalProfilePoint p;
-  p.start_px = focal;
-  p.focal_px = focal;
-  p.refined = refine;
-  // The calibration stage's checks passed on the whole clip and its pairs only serve the focal
-  // and the motion class (general, or the sweep would not run): start at the initial pair.
-  probe.f_ = focal;
-  probe.focal_source_ = "given";
-  probe.focal_observable_ = true;
-  if (probe.initialize() && probe.registerFrames() && probe.finalize()) {
-    p.solved_frames = probe.solvedFrames();
-    p.median_reproj_px = probe.medianReprojectionAll();
-    p.focal_px = probe.focal();
-  }
-  return p;
-}
-
-void Solver::sweepFocal() {
-  sweep_pending_ = false;
-  // The probes solve every k-th frame only (at most kProbeFrames frames): the profile is a
-  // property of the scene and the motion, not of the frame rate, and the final solve refines
-  // the focal on every frame.
-  constexpr int kProbeFrames = 60;
-  const int n = tracks_.frameCount();
-  const int k_sub = std::max(1, (n + kProbeFrames - 1) / kProbeFrames);
-  TrackTable sub;
-  sub.reserve((n + k_sub - 1) / k_sub,
-              tracks_.observations().size() / static_cast<std::size_t>(k_sub) + 1);
-  for (int f = 0; f < n; f += k_sub)
-    for (const auto& o : tracks_.frame(f)) sub.add(f / k_sub, tracks_.trackId(o.track), o.x, o.y);
-  sub.setFrameCount((n + k_sub - 1) / k_sub);
-  sub.finalize();
-  const auto probeFocal = [&](double focal, bool refine) {
-    return this->probeFocal(sub, focal, refine);
-  };
-  // 1. Basins: whole solves started from a 90 to an 18 degree horizontal field of view, a
-  // factor 1.25 apart, each refining the focal in its final adjustment (a start in the basin of
-  // the true focal ends there, however narrow the valley; a far start may end in another
-  // solution, e.g. the depth-reversed one).
-  const double base = std::max(width_, height_);
-  double k = 0.5;
-  for (int i = 0; i < 9; ++i, k *= 1.25) profile_.push_back(probeFocal(k * base, true));
-  int most_solved = 0;
-  for (const auto& p : profile_) most_solved = std::max(most_solved, p.solved_frames);
-  if (most_solved == 0) return;  // nothing solves: keep the field-of-view fallback
-  // Score: the median error, penalised for frames left unsolved (a wrong focal loses frames).
-  const auto score = [&](const FocalProfilePoint& p) {
-    if (p.solved_frames == 0) return std::numeric_limits<double>::infinity();
-    const double r = static_cast<double>(most_solved) / static_cast<double>(p.solved_frames);
-    return p.median_reproj_px * r * r;
-  };
-  const auto bestOf = [&](std::size_t from) {
-    std::size_t b = from;
-    for (std::size_t i = from; i < profile_.size(); ++i)
-      if (score(profile_[i]) < score(profile_[b])) b = i;
-    return b;
-  };
-  const std::size_t basin = bestOf(0);
-  const double fb = profile_[basin].focal_px;
-  // 2. The profile itself (focal held) around the basin's focal: a parabola in log(focal)
-  // through 3 % steps, and the sharpness of the minimum at +-10 %.
-  const std::size_t fine = profile_.size();
-  constexpr double kFine = 0.03;
-  profile_.push_back(probeFocal(fb * (1.0 - kFine), false));
-  profile_.push_back(probeFocal(fb, false));
-  profile_.push_back(probeFocal(fb * (1.0 + kFine), false));
-  const double ym = score(profile_[fine]), y0 = score(profile_[fine + 1]),
-               yp = score(profile_[fine + 2]);
-  const double h = std::log1p(kFine);
-  const double den = ym - 2.0 * y0 + yp;
-  if (den > 0.0 && std::isfinite(den)) {
-    const double dx = std::clamp(0.5 * h * (ym - yp) / den, -2.0 * h, 2.0 * h);
-    profile_.push_back(probeFocal(fb * std::exp(dx), false));
-  }
-  const std::size_t best = bestOf(fine);
-  f_ = profile_[best].focal_px;
-  const FocalProfilePoint lo = probeFocal(f_ / 1.1, false);
-  const FocalProfilePoint hi = probeFocal(f_ * 1.1, false);
-  profile_.push_back(lo);
-  profile_.push_back(hi);
-  // Clear: 10 % either way costs at least 5 % of median error.
-  const bool clear =
-      score(lo) >= 1.05 * score(profile_[best]) && score(hi) >= 1.05 * score(profile_[best]);
-  focal_fallback_ = clear ? "profile" : "profile-flat";
-  refine_fallback_focal_ = clear;
-}
-
-double Solver::medianReprojectionAll() const {
-  std::vector<double> e;
-  for (int f = 0; f < tracks_.frameCount(); ++f) {
-    const auto& fr = frames_[static_cast<std::size_t>(f)];
-    if (!fr.solved) continue;
-    for (const auto& o : tracks_.frame(f)) {
-      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
-      if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      e.push_back(pc.z() > 0.0 ? (pc.hnormalized() - normalized(o)).norm() * f_
-                               : std::numeric_limits<double>::infinity());
-    }
-  }
-  return e.empty() ? std::numeric_limits<double>::infinity() : median(std::move(e));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -376,29 +319,25 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
   }
   Eigen::Matrix3d K;
   K << f_, 0, cx_, 0, f_ * aspect_, cy_, 0, 0, 1;
-  // Distortion is applied through `normalized`; E from F in pixels ignores it (refined below).
-  const Eigen::Matrix3d E = essentialFromFundamental(f.F, K, K);
-  RelativePoseResult rp;
-  if (!recoverRelativePose(E, n1, n2, f.mask, rp)) return false;
-  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
-  PoseCw pose = rp.pose;
-  refineRelativePose(n1, n2, f.mask, f_, pose);
-  TriangulationOptions to;
-  to.focal_px = f_;
-  to.min_parallax_deg = options_.min_point_parallax_deg;
-  to.max_reproj_px = options_.reproj_threshold_px;
-  const PoseCw poses[2] = {PoseCw{}, pose};
+  TwoViewOptions tv;
+  tv.focal_px = f_;
+  tv.min_point_parallax_deg = options_.min_point_parallax_deg;
+  tv.reproj_threshold_px = options_.reproj_threshold_px;
+  PoseCw pose;
+  std::vector<Eigen::Vector3d> X_all(n1.size());
+  std::vector<int> accepted(n1.size());
+  std::vector<double> parallax(n1.size());
+  int count = 0;
+  if (reconstructTwoView(f.F, K, n1, n2, f.mask, tv, pose, X_all, accepted, parallax, count) !=
+      TwoViewStatus::kOk)
+    return false;
+  parallax.resize(static_cast<std::size_t>(count));
   tracks.clear();
   X.clear();
-  std::vector<double> parallax;
-  for (std::size_t i = 0; i < n1.size(); ++i) {
-    if (!f.mask[i]) continue;
-    const Eigen::Vector2d obs[2] = {n1[i], n2[i]};
-    const auto t = triangulatePoint(poses, obs, to);
-    if (t.status != TriangulationStatus::kOk) continue;
+  for (int g = 0; g < count; ++g) {
+    const auto i = static_cast<std::size_t>(accepted[static_cast<std::size_t>(g)]);
     tracks.push_back(ids[i]);
-    X.push_back(t.X);
-    parallax.push_back(t.parallax_deg);
+    X.push_back(X_all[i]);
   }
   if (tracks.size() < 30) return false;
   const double med_parallax = median(parallax);
@@ -418,7 +357,7 @@ bool Solver::initialize() {
   // only when no pair has parallax is the clip solved as a tripod.
   bool rotation_coherent = false;
   double rotation_focal = 0.0;
-  if (motion_ == "rotation-or-plane" && !homographies_.empty()) {
+  if (motion_ == MotionClass::kRotationOrPlane && !homographies_.empty()) {
     std::vector<double> fs;
     for (const auto& H : homographies_) {
       const auto e = estimateFocalFromRotation(H, width_, height_);
@@ -432,14 +371,14 @@ bool Solver::initialize() {
     rotation_coherent = coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits;
     if (rotation_coherent && options_.focal_px <= 0.0 && !focal_observable_) {
       f_ = rotation_focal;
-      focal_source_ = "self-calibrated";
+      focal_source_ = FocalSource::kSelfCalibrated;
       focal_observable_ = true;
     }
   }
   // Homographies that are not rotations: a single plane (or a scene so distant it acts as one).
   // Any focal then explains the views equally well (paper §5.2 needs F), so a solve with a guessed
   // focal would be silently distorted: say so instead.
-  if (motion_ == "rotation-or-plane" && !rotation_coherent && options_.focal_px <= 0.0 &&
+  if (motion_ == MotionClass::kRotationOrPlane && !rotation_coherent && options_.focal_px <= 0.0 &&
       !focal_observable_) {
     status_ = Status::kPlanarScene;
     message_ =
@@ -504,18 +443,23 @@ bool Solver::initialize() {
     if (t < 4 && widest > 0 && widest != last_tried && widest_d >= 0.02 * width_) consider(widest);
   }
   if (best_score <= 0.0 && rotation_coherent) {
-    tripodSolve();
+    if (!tripodSolve()) {  // its result was ignored: a failed tripod solve stayed "ok"
+      status_ = Status::kInitFailed;
+      message_ =
+          "the frames are related by rotations, but the tripod solve found no focal or no frame "
+          "with 8 tracks";
+    }
     return false;
   }
   if (best_score <= 0.0) {
-    status_ = motion_ == "rotation-or-plane" ? Status::kPlanarScene : Status::kInitFailed;
+    status_ = motion_ == MotionClass::kRotationOrPlane ? Status::kPlanarScene : Status::kInitFailed;
     message_ = status_ == Status::kPlanarScene
                    ? "the frames are related by homographies (a single plane without a given "
                      "focal, or no translation): no 3D reconstruction"
                    : "no pair of frames gave a valid two-view reconstruction";
     return false;
   }
-  motion_ = "general";
+  motion_ = MotionClass::kGeneral;
   auto& fa = frames_[static_cast<std::size_t>(init_a_)];
   auto& fb = frames_[static_cast<std::size_t>(init_b_)];
   fa.solved = fb.solved = true;
@@ -564,8 +508,8 @@ bool Solver::registerFrame(int f, int min_inliers, double min_inlier_ratio) {
     std::vector<uint8_t> keep(X.size(), 0);
     int kept = 0;
     for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = r.pose.toCamera(X[i]);
-      if (pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= robust_cut_px_) {
+      double e = 0.0;
+      if (reprojectionErrorPx(r.pose, X[i], x[i], f_, e) && e <= robust_cut_px_) {
         keep[i] = 1;
         ++kept;
       }
@@ -708,10 +652,10 @@ void Solver::adjust(bool global) {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
-      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
-          points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(frames_[static_cast<std::size_t>(f)].pose,
+                               points_[static_cast<std::size_t>(p)].X, normalized(o), f_, e))
+        continue;
       int c = cam_of_frame[static_cast<std::size_t>(f)];
       if (c < 0) {
         c = static_cast<int>(cams.size());
@@ -731,7 +675,7 @@ void Solver::adjust(bool global) {
     // adjustments keep the fixed cut: a young map's residuals are not yet representative.
     std::vector<double> e(candidates.size());
     for (std::size_t i = 0; i < candidates.size(); ++i) e[i] = candidates[i].residual;
-    const double sigma = median(std::move(e)) / 1.1774;
+    const double sigma = median(std::move(e)) / kRayleighMedianPerSigma;
     cut = std::min(cut, std::max(options_.min_outlier_px, options_.outlier_sigmas * sigma));
     if (options_.huber_sigmas > 0.0)
       huber = std::min(options_.huber_px,
@@ -761,9 +705,10 @@ void Solver::adjust(bool global) {
   // 340-frame orbit the figures are equal to 5 digits and the final adjustments take 0.28 s
   // instead of 0.59 (the default 1e-10 ran all 30 iterations).
   if (global) bo.function_tolerance = 1e-6;
-  bo.refine_focal = global && ((focal_source_ == "self-calibrated") ||
-                               (focal_source_ == "given" && options_.refine_given_focal) ||
-                               (focal_source_ == "fallback" && refine_fallback_focal_));
+  bo.refine_focal =
+      global && ((focal_source_ == FocalSource::kSelfCalibrated) ||
+                 (focal_source_ == FocalSource::kGiven && options_.refine_given_focal) ||
+                 (focal_source_ == FocalSource::kFallback && refine_fallback_focal_));
   bo.refine_distortion = global ? options_.refine_distortion : 0;
   BaIntrinsics k{f_, aspect_, cx_, cy_, k1_, k2_};
   ba.solve(cams, cam_fixed, pts, {}, obs, k, bo);
@@ -843,6 +788,7 @@ bool Solver::finalize() {
     }
   }
   computeErrors();
+  assessCoverage();
   return solvedFrames() > 0;
 }
 
@@ -860,9 +806,8 @@ void Solver::computeErrors() {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
       auto& mp = points_[static_cast<std::size_t>(p)];
-      const Eigen::Vector3d pc = fr.pose.toCamera(mp.X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(fr.pose, mp.X, normalized(o), f_, e)) continue;
       if (e > options_.reproj_threshold_px) continue;
       sum += e * e;
       ++count;
@@ -884,278 +829,16 @@ void Solver::reprojectionStats(double& mean_px, double& median_px) const {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double v = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double v = 0.0;
+      if (!reprojectionErrorPx(fr.pose, points_[static_cast<std::size_t>(p)].X, normalized(o), f_,
+                               v))
+        continue;
       if (v <= options_.reproj_threshold_px) e.push_back(v);
     }
   }
   mean_px =
       e.empty() ? 0.0 : std::accumulate(e.begin(), e.end(), 0.0) / static_cast<double>(e.size());
   median_px = median(e);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Tripod solve: a rotating camera (Hartley 1997): focal from the rotation homographies, each
-// frame's rotation from its homography to a reference frame, every centre at the origin.
-
-bool Solver::tripodSolve() {
-  const int n = tracks_.frameCount();
-  if (options_.focal_px > 0.0) {
-    f_ = options_.focal_px;
-  } else {
-    std::vector<double> fs;
-    for (const auto& H : homographies_) {
-      const auto e = estimateFocalFromRotation(H, width_, height_);
-      if (e.observable) fs.push_back(e.focal_px);
-    }
-    if (fs.empty()) return false;
-    f_ = median(fs);
-    focal_source_ = "self-calibrated";
-    focal_observable_ = true;
-  }
-  Eigen::Matrix3d K;
-  K << f_, 0, cx_, 0, f_ * aspect_, cy_, 0, 0, 1;
-  const Eigen::Matrix3d Kinv = K.inverse();
-  int max_obs = 0;
-  for (int f = 0; f < n; ++f)
-    max_obs = std::max(max_obs, static_cast<int>(tracks_.frame(f).size()));
-  HomographyRansac hr(std::max(8, max_obs));
-  std::vector<Eigen::Vector2d> x1, x2;
-  int ref = 0;
-  Eigen::Matrix3d R_ref = Eigen::Matrix3d::Identity();  // R_cw of the reference frame
-  frames_[0].solved = tracks_.frame(0).size() >= 8;
-  int solved = 0;
-  for (int f = 0; f < n; ++f) {
-    if (f == ref) {
-      frames_[static_cast<std::size_t>(f)].solved = true;
-      frames_[static_cast<std::size_t>(f)].pose.R_cw = R_ref;
-      ++solved;
-      continue;
-    }
-    if (commonTracks(ref, f, &x1, &x2) < 20) {
-      // Re-anchor on the previous solved frame.
-      if (f - 1 != ref && frames_[static_cast<std::size_t>(f - 1)].solved) {
-        ref = f - 1;
-        R_ref = frames_[static_cast<std::size_t>(ref)].pose.R_cw;
-        commonTracks(ref, f, &x1, &x2);
-      }
-      if (x1.size() < 8) continue;
-    }
-    HomographyResult h;
-    if (hr.estimate(x1, x2, {}, h) != HomographyRansac::Status::kOk) continue;
-    // x_f ~ K R_f R_ref^T K^-1 x_ref.
-    Eigen::JacobiSVD<Eigen::Matrix3d> svd(Kinv * h.H * K,
-                                          Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
-    if (R.determinant() < 0) R = -R;
-    auto& fr = frames_[static_cast<std::size_t>(f)];
-    fr.solved = true;
-    fr.pose.R_cw = R * R_ref;
-    fr.pose.t_cw.setZero();
-    fr.rms_px = h.rms_transfer_px;
-    fr.inliers = h.inliers;
-    ++solved;
-  }
-  tripod_ = true;
-  motion_ = "rotation-only";
-  status_ = Status::kRotationOnly;
-  message_ = "the camera only rotates (tripod): rotation and focal solved, depth unknown";
-  return solved > 0;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Key frames (SolverOptions::keyframe_collection): initial pair over the whole clip, next best
-// view registration.
-
-void Solver::initialCandidatesAll(const std::function<void(int, int)>& consider) const {
-  // Every frame with each of its next keyframe_pair_gap frames that shares 30 tracks with it.
-  const int n = tracks_.frameCount();
-  for (int a = 0; a + 1 < n; ++a) {
-    for (int b = a + 1; b < n && b <= a + options_.keyframe_pair_gap; ++b) {
-      if (commonTracks(a, b, nullptr, nullptr) < 30) continue;
-      consider(a, b);
-    }
-  }
-}
-
-bool Solver::registerByRelativePose(int f, int reference) {
-  // Correspondences between the solved reference and f.
-  std::vector<Eigen::Vector2d> n_ref, n_f;
-  for (const auto& o : tracks_.frame(reference)) {
-    const TrackObservation* of = tracks_.find(o.track, f);
-    if (of == nullptr) continue;
-    n_ref.push_back(normalized(o));
-    n_f.push_back(normalized(*of));
-  }
-  if (static_cast<int>(n_ref.size()) < options_.keyframe_min_pair_inliers) return false;
-  EssentialRansac er(static_cast<int>(n_ref.size()));
-  EssentialRansacOptions eo;
-  eo.ransac.threshold = options_.reproj_threshold_px;
-  eo.ransac.seed = options_.seed + 7919u * static_cast<uint64_t>(f);
-  eo.focal_px = f_;
-  EssentialRansacResult e;
-  if (er.estimate(n_ref, n_f, eo, e) != EssentialRansac::Status::kOk ||
-      e.inliers < options_.keyframe_min_pair_inliers ||
-      2 * e.inliers < static_cast<int>(n_ref.size()))
-    return false;
-  const std::vector<uint8_t> mask(e.mask.begin(), e.mask.end());
-  RelativePoseResult rp;
-  if (!recoverRelativePose(e.E, n_ref, n_f, mask, rp)) return false;
-  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
-  PoseCw rel = rp.pose;
-  refineRelativePose(n_ref, n_f, mask, f_, rel);
-  // Pose of f: R = R_rel R_ref, t = R_rel t_ref + lambda t_rel; lambda from the map points f sees.
-  const PoseCw& ref = frames_[static_cast<std::size_t>(reference)].pose;
-  PoseCw pose;
-  pose.R_cw = rel.R_cw * ref.R_cw;
-  const Eigen::Vector3d t0 = rel.R_cw * ref.t_cw;
-  const Eigen::Vector3d b = rel.t_cw.normalized();
-  std::vector<Eigen::Vector3d> X;
-  std::vector<Eigen::Vector2d> x;
-  std::vector<double> lambdas;
-  for (const auto& o : tracks_.frame(f)) {
-    const int p = point_of_track_[static_cast<std::size_t>(o.track)];
-    if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-    const Eigen::Vector3d A = pose.R_cw * points_[static_cast<std::size_t>(p)].X + t0;
-    const Eigen::Vector3d u = normalized(o).homogeneous();
-    // (A + lambda b) parallel to u: lambda minimises |A x u + lambda (b x u)|.
-    const Eigen::Vector3d bu = b.cross(u), au = A.cross(u);
-    const double den = bu.squaredNorm();
-    if (!(den > 1e-12)) continue;
-    X.push_back(points_[static_cast<std::size_t>(p)].X);
-    x.push_back(normalized(o));
-    lambdas.push_back(-au.dot(bu) / den);
-  }
-  if (static_cast<int>(X.size()) < options_.keyframe_min_scale_points) return false;
-  const double t_px = options_.reproj_threshold_px;
-  const auto inliersFor = [&](const PoseCw& candidate, std::vector<uint8_t>* keep) {
-    int n = 0;
-    for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = candidate.toCamera(X[i]);
-      const bool in = pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= t_px;
-      n += in ? 1 : 0;
-      if (keep != nullptr) (*keep)[i] = in ? 1 : 0;
-    }
-    return n;
-  };
-  // Every point's lambda as a hypothesis; the one most points agree with wins (a 1-D RANSAC).
-  int best_n = 0;
-  double best_lambda = 0.0;
-  for (const double l : lambdas) {
-    if (!(l > 0.0)) continue;  // the camera moves along +t_rel (cheirality of E)
-    PoseCw c = pose;
-    c.t_cw = t0 + l * b;
-    const int n = inliersFor(c, nullptr);
-    if (n > best_n) {
-      best_n = n;
-      best_lambda = l;
-    }
-  }
-  if (best_n < options_.keyframe_min_scale_points) return false;
-  pose.t_cw = t0 + best_lambda * b;
-  // Least-squares lambda over the agreeing points (the rotation stays E's: it rests on many more
-  // correspondences than the handful of points that fix the distance).
-  std::vector<uint8_t> keep(X.size(), 0);
-  inliersFor(pose, &keep);
-  double num = 0.0, den = 0.0;
-  for (std::size_t i = 0; i < X.size(); ++i) {
-    if (!keep[i]) continue;
-    const Eigen::Vector3d A = pose.R_cw * X[i] + t0;
-    const Eigen::Vector3d u = x[i].homogeneous();
-    const Eigen::Vector3d bu = b.cross(u), au = A.cross(u);
-    num -= au.dot(bu);
-    den += bu.squaredNorm();
-  }
-  if (den > 0.0 && num / den > 0.0) {
-    PoseCw c = pose;
-    c.t_cw = t0 + (num / den) * b;
-    if (inliersFor(c, nullptr) >= best_n) pose = c;
-  }
-  const PoseCw refined = pose;
-  const int n = inliersFor(refined, nullptr);
-  if (n < options_.keyframe_min_scale_points ||
-      n < options_.keyframe_min_inlier_ratio * static_cast<double>(X.size()))
-    return false;
-  auto& fr = frames_[static_cast<std::size_t>(f)];
-  fr.solved = true;
-  fr.pose = refined;
-  fr.inliers = n;
-  fr.rms_px = 0.0;
-  return true;
-}
-
-bool Solver::registerBestViews() {
-  const int n = tracks_.frameCount();
-  triangulateNewTracks(init_b_);
-  // Map points each frame sees when it was last tried (a failed frame is tried again only when
-  // the map it sees has grown by a quarter, so the loop ends); the solved count when its
-  // relative pose was last tried.
-  std::vector<int> tried_at(static_cast<std::size_t>(n), -1);
-  std::vector<int> relative_tried_at(static_cast<std::size_t>(n), -1);
-  const auto visible = [&](int f) {
-    int c = 0;
-    for (const auto& o : tracks_.frame(f)) {
-      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
-      c += p >= 0 && points_[static_cast<std::size_t>(p)].valid ? 1 : 0;
-    }
-    return c;
-  };
-  int accepted = 0;
-  const auto accept = [&](int f) {
-    addKeyframe(f);
-    triangulateNewTracks(f);
-    // Short tracks chain the views weakly: a global adjustment every few frames keeps the early
-    // ones from being frozen with their first (least constrained) poses.
-    const int every = options_.keyframe_global_every;
-    adjust(every > 0 && ++accepted % every == 0);
-  };
-  for (;;) {
-    int best = -1, best_count = 0;
-    for (int f = 0; f < n; ++f) {
-      if (frames_[static_cast<std::size_t>(f)].solved) continue;
-      const int c = visible(f);
-      if (c < options_.keyframe_min_inliers) continue;
-      if (tried_at[static_cast<std::size_t>(f)] >= 0 &&
-          c * 4 < tried_at[static_cast<std::size_t>(f)] * 5)
-        continue;
-      if (c > best_count) {
-        best_count = c;
-        best = f;
-      }
-    }
-    if (best >= 0) {
-      tried_at[static_cast<std::size_t>(best)] = best_count;
-      const bool reg =
-          registerFrame(best, options_.keyframe_min_inliers, options_.keyframe_min_inlier_ratio);
-      if (reg) accept(best);
-      continue;
-    }
-    if (!options_.keyframe_relative_pose) break;
-    // No frame left for PnP: the unsolved frame sharing most tracks with a solved one, from its
-    // relative pose to that frame.
-    const int solved = solvedFrames();
-    int rel = -1, rel_ref = -1, rel_common = 0;
-    for (int f = 0; f < n; ++f) {
-      if (frames_[static_cast<std::size_t>(f)].solved ||
-          relative_tried_at[static_cast<std::size_t>(f)] == solved)
-        continue;
-      for (int r = 0; r < n; ++r) {
-        if (!frames_[static_cast<std::size_t>(r)].solved) continue;
-        const int c = commonTracks(r, f, nullptr, nullptr);
-        if (c > rel_common) {
-          rel_common = c;
-          rel = f;
-          rel_ref = r;
-        }
-      }
-    }
-    if (rel < 0 || rel_common < options_.keyframe_min_pair_inliers) break;
-    relative_tried_at[static_cast<std::size_t>(rel)] = solved;
-    const bool ok = registerByRelativePose(rel, rel_ref);
-    if (ok) accept(rel);
-  }
-  return true;
 }
 
 }  // namespace epitrack

@@ -71,6 +71,34 @@ struct SolverOptions {
   int keyframe_min_pair_inliers = 30;
   int keyframe_min_scale_points = 5;
   int keyframe_global_every = 5;  ///< a global adjustment after every this many registrations
+  /// A reconstruction that solves fewer than this fraction of the frames (views) is `kPartial`,
+  /// never `kOk` (issues 20 and 22: a solve of 8 frames in 200 is not a result to call done).
+  double min_solved_fraction = 0.9;
+};
+
+/// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the
+/// frame's tracks offered; kNone for a solved frame.
+enum class UnsolvedCause {
+  kNone,
+  kTracksLost,    ///< fewer tracked features than a pose needs, or than a quarter of the median
+                  ///< solved frame's (a blank view, blur, a cut)
+  kNotConnected,  ///< its tracks reach no solved frame: nothing links it to the map
+  kTooLittleParallax,  ///< tracks shared with solved frames, but too few became 3D points
+  kResectionFailed,    ///< enough 3D points in view, but no pose fits enough of them
+  kNoReconstruction,   ///< the solve failed before any frame was solved (Solver::status says why)
+};
+/// A short machine-readable name ("tracks-lost", ...).
+const char* toString(UnsolvedCause c);
+/// What the cause means, in a few words for a message ("fewer than 12 tracked features", ...).
+const char* describe(UnsolvedCause c);
+
+/// Consecutive frames [first, last] that are all solved (cause kNone) or all unsolved for the
+/// same cause.
+struct FrameRange {
+  int first = 0;
+  int last = 0;
+  bool solved = false;
+  UnsolvedCause cause = UnsolvedCause::kNone;
 };
 
 /// One frame of the solve.
@@ -80,7 +108,12 @@ struct SolvedFrame {
   PoseCw pose;
   int inliers = 0;
   double rms_px = 0.0;
+  UnsolvedCause unsolved = UnsolvedCause::kNoReconstruction;  ///< kNone once solved
 };
+
+/// The frames split into runs of solved frames and runs of unsolved frames with one cause, in
+/// frame order.
+std::vector<FrameRange> frameRanges(const std::vector<SolvedFrame>& frames);
 
 struct MapPoint {
   Eigen::Vector3d X = Eigen::Vector3d::Zero();
@@ -108,6 +141,54 @@ struct PairFocal {
   bool homography = false;  ///< the pair fitted a homography better (rotation, plane, no motion)
 };
 
+/// How the solve ended (Solver::status). Names in toString: "ok", "too-few-features", ...
+enum class SolverStatus {
+  kOk,
+  kTooFewFeatures,  ///< not enough tracks to relate frames
+  kNoMotion,        ///< the camera does not move enough to see parallax
+  kRotationOnly,    ///< tripod: rotation and focal solved, depth unknown
+  kPlanarScene,     ///< a single plane and the focal unknown: F is undefined
+  kInitFailed,      ///< no candidate pair gave a valid two-view reconstruction
+  /// A reconstruction (general or tripod) that leaves more than 1 - min_solved_fraction of the
+  /// frames unsolved: `frames()` says which and why (SolvedFrame::unsolved), the message names
+  /// the unsolved ranges.
+  kPartial,
+};
+const char* toString(SolverStatus s);
+
+/// The camera motion the calibration pairs show: "general", "rotation-or-plane" (at least 80 %
+/// of the pairs fit a homography better), "rotation-only" (solved as a tripod).
+enum class MotionClass { kGeneral, kRotationOrPlane, kRotationOnly };
+const char* toString(MotionClass m);
+
+/// Where the focal comes from: "given", "self-calibrated" (F pairs, paper §5.2, or the
+/// rotation homographies), "fallback" (neither: the focal profile or the field of view).
+enum class FocalSource { kGiven, kSelfCalibrated, kFallback };
+const char* toString(FocalSource s);
+
+/// How a fallback focal was chosen: "" (none), "profile" (a clear minimum of the focal profile),
+/// "profile-flat" (the profile's best, no clear minimum), "field-of-view" (fallback_focal_widths).
+enum class FocalFallback { kNone, kProfile, kProfileFlat, kFieldOfView };
+const char* toString(FocalFallback f);
+
+/// The solve's figures (Ceres-style Summary): status, intrinsics in use, where the focal came
+/// from, the motion class and the initial pair.
+struct SolverSummary {
+  SolverStatus status = SolverStatus::kOk;
+  std::string message;  ///< why the solve stopped or is partial ("" when ok)
+  double focal_px = 0.0;
+  double aspect = 1.0;  ///< fy / fx
+  double cx = 0.0, cy = 0.0;
+  double k1 = 0.0, k2 = 0.0;
+  FocalSource focal_source = FocalSource::kGiven;
+  bool focal_observable = true;
+  FocalFallback focal_fallback = FocalFallback::kNone;
+  MotionClass motion = MotionClass::kGeneral;
+  int frames = 0;
+  int solved_frames = 0;
+  int initial_pair_a = -1, initial_pair_b = -1;  ///< -1: no initial pair
+};
+
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
 /// `calibrate` (focal given or self-calibrated over many pairs, paper §5.2), `initialize` (the
 /// best-scoring initial pair among several candidates: F, E, cheirality, triangulation, §5.3),
@@ -116,52 +197,39 @@ struct PairFocal {
 /// adjustment over keyframes with the focal and distortion when requested, then every frame's
 /// pose refined on the final map). A pure rotation ends in a tripod solve (rotation and focal;
 /// depth unknown). Each stage returns false when the solve cannot go on; `status()` says why.
+///
+/// Sources by concern: solver.cpp (the four stages, adjustment, triangulation),
+/// solver_focal_profile.cpp (focal profile), solver_tripod.cpp (tripod solve),
+/// solver_keyframes.cpp (key-frame mode), solver_coverage.cpp (unsolved causes, partial status).
 class Solver {
  public:
-  enum class Status {
-    kOk,
-    kTooFewFeatures,  ///< not enough tracks to relate frames
-    kNoMotion,        ///< the camera does not move enough to see parallax
-    kRotationOnly,    ///< tripod: rotation and focal solved, depth unknown
-    kPlanarScene,     ///< a single plane and the focal unknown: F is undefined
-    kInitFailed,      ///< no candidate pair gave a valid two-view reconstruction
-  };
+  using Status = SolverStatus;
 
   Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options);
 
   bool calibrate();
+  /// Stage 1 for a focal given in the options when the clip's calibration checks already passed
+  /// elsewhere (the focal profile's probes, solving a subsampled copy of the clip): the focal is
+  /// taken as given, the motion as general (the profile only runs on general motion).
+  void calibrateAsGiven();
   bool initialize();
   bool registerFrames();
   bool finalize();
 
   [[nodiscard]] Status status() const { return status_; }
-  [[nodiscard]] const std::string& message() const { return message_; }
+  /// Status, intrinsics, focal source, motion and initial pair as they stand after the last stage.
+  [[nodiscard]] SolverSummary summary() const;
   [[nodiscard]] const std::vector<SolvedFrame>& frames() const { return frames_; }
   [[nodiscard]] const std::vector<MapPoint>& points() const { return points_; }
-  [[nodiscard]] double focal() const { return f_; }
-  [[nodiscard]] double k1() const { return k1_; }
-  [[nodiscard]] double k2() const { return k2_; }
-  [[nodiscard]] double cx() const { return cx_; }
-  [[nodiscard]] double cy() const { return cy_; }
-  [[nodiscard]] double aspect() const { return aspect_; }
-  [[nodiscard]] const std::string& focalSource() const { return focal_source_; }
-  [[nodiscard]] bool focalObservable() const { return focal_observable_; }
-  [[nodiscard]] const std::string& motion() const { return motion_; }
   [[nodiscard]] const std::vector<PairFocal>& pairFocals() const { return pair_focals_; }
   /// The focal profile when F did not observe the focal (empty otherwise), in evaluation order.
   [[nodiscard]] const std::vector<FocalProfilePoint>& focalProfile() const { return profile_; }
-  /// How the fallback focal was chosen: "profile" (a clear minimum of the profile), "profile-flat"
-  /// (the profile's best, no clear minimum), "field-of-view" (fallback_focal_widths); "" when the
-  /// focal was given or self-calibrated from F.
-  [[nodiscard]] const std::string& focalFallback() const { return focal_fallback_; }
   /// Median reprojection error (pixels) of every observation of a valid map point in a solved
   /// frame, inliers or not (the profile's score).
   [[nodiscard]] double medianReprojectionAll() const;
   [[nodiscard]] int solvedFrames() const;
   /// Mean and median reprojection error over every inlier observation of a solved frame.
   void reprojectionStats(double& mean_px, double& median_px) const;
-  [[nodiscard]] int initialPairA() const { return init_a_; }
-  [[nodiscard]] int initialPairB() const { return init_b_; }
 
  private:
   [[nodiscard]] Eigen::Vector2d normalized(const TrackObservation& o) const;
@@ -179,6 +247,9 @@ class Solver {
   int triangulateNewTracks(int f);
   void adjust(bool global);
   bool tripodSolve();
+  /// Sets every frame's UnsolvedCause, then turns kOk / kRotationOnly into kPartial (with a
+  /// message naming the unsolved ranges) when too few frames are solved.
+  void assessCoverage();
   /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
   void sweepFocal();
   [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,
@@ -191,9 +262,9 @@ class Solver {
   int width_, height_;
   SolverOptions options_;
   double f_ = 0.0, cx_ = 0.0, cy_ = 0.0, k1_ = 0.0, k2_ = 0.0, aspect_ = 1.0;
-  std::string focal_source_ = "given";
+  FocalSource focal_source_ = FocalSource::kGiven;
   bool focal_observable_ = true;
-  std::string motion_ = "general";
+  MotionClass motion_ = MotionClass::kGeneral;
   Status status_ = Status::kOk;
   std::string message_;
   std::vector<SolvedFrame> frames_;
@@ -208,12 +279,10 @@ class Solver {
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA
   std::vector<FocalProfilePoint> profile_;
-  std::string focal_fallback_;
+  FocalFallback focal_fallback_ = FocalFallback::kNone;
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
   double robust_huber_px_ = 0.0;
 };
-
-const char* toString(Solver::Status s);
 
 }  // namespace epitrack

@@ -73,10 +73,11 @@ Outcome solve(const Clip& c, double focal, int refine_distortion = 0) {
   out.ok = s.calibrate() && s.initialize() && s.registerFrames() && s.finalize();
   out.status = s.status();
   out.solved = s.solvedFrames();
-  out.focal = s.focal();
-  out.focal_observable = s.focalObservable();
-  out.focal_source = s.focalSource();
-  out.focal_fallback = s.focalFallback();
+  const SolverSummary summary = s.summary();
+  out.focal = summary.focal_px;
+  out.focal_observable = summary.focal_observable;
+  out.focal_source = toString(summary.focal_source);
+  out.focal_fallback = toString(summary.focal_fallback);
   std::vector<hal::TrajectoryEntry> est;
   for (int f = 0; f < c.tracks.frameCount(); ++f) {
     const auto& fr = s.frames()[static_cast<std::size_t>(f)];
@@ -169,8 +170,8 @@ TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][
   REQUIRE(s.calibrate());
   CHECK_FALSE(s.initialize());
   CHECK(s.status() == Solver::Status::kRotationOnly);
-  CHECK(s.motion() == "rotation-only");
-  CHECK(std::abs(s.focal() / 600.0 - 1.0) <= 0.02);
+  CHECK(s.summary().motion == MotionClass::kRotationOnly);
+  CHECK(std::abs(s.summary().focal_px / 600.0 - 1.0) <= 0.02);
   CHECK(s.solvedFrames() == 100);
   // Rotations relative to frame 0 against the truth.
   const Eigen::Matrix3d R0 = c.gt[0].rotation.toRotationMatrix();
@@ -224,4 +225,133 @@ TEST_CASE("Too few features and no motion end with a status", "[sfm][solver]") {
   Solver s2(still, 640, 480, {});
   CHECK_FALSE(s2.calibrate());
   CHECK(s2.status() == Solver::Status::kNoMotion);
+}
+
+namespace {
+
+// An orbit whose tracks stop at `cut` (frames after it see nothing: a blank wall), or, with
+// `new_ids`, continue under new track ids (a cut to footage nothing links to the first part).
+void makeCutClip(Clip& c, int frames, int cut, bool new_ids) {
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, frames, 0.5, 0.3);
+  c.options = full.options;
+  c.gt = full.gt;
+  c.tracks.reserve(frames, full.tracks.observations().size());
+  for (int f = 0; f < frames; ++f) {
+    if (f >= cut && !new_ids) continue;
+    for (const auto& o : full.tracks.frame(f))
+      c.tracks.add(f, full.tracks.trackId(o.track) + (f >= cut ? 1000000 : 0), o.x, o.y);
+  }
+  c.tracks.setFrameCount(frames);
+  c.tracks.finalize();
+}
+
+}  // namespace
+
+TEST_CASE("A solve of half the frames is partial and says why the rest is unsolved",
+          "[sfm][solver]") {
+  for (const bool new_ids : {false, true}) {
+    Clip c;
+    makeCutClip(c, 120, 60, new_ids);
+    SolverOptions o;
+    o.focal_px = 600.0;
+    Solver s(c.tracks, c.options.width, c.options.height, o);
+    const bool ok = s.calibrate() && s.initialize() && s.registerFrames() && s.finalize();
+    INFO((new_ids ? "cut to unlinked tracks" : "blank second half") << ": " << s.summary().message);
+    // The reconstruction itself succeeded: it is the coverage that is not ok.
+    CHECK(ok);
+    CHECK(s.status() == Solver::Status::kPartial);
+    CHECK(std::string(toString(s.status())) == "partial");
+    CHECK(s.solvedFrames() <= 60);
+    CHECK(s.solvedFrames() >= 55);
+    const auto ranges = frameRanges(s.frames());
+    REQUIRE(ranges.size() >= 2);
+    int covered = 0;
+    for (const auto& r : ranges) covered += r.last - r.first + 1;
+    CHECK(covered == 120);
+    CHECK(ranges.front().first == 0);
+    const FrameRange& tail = ranges.back();
+    CHECK_FALSE(tail.solved);
+    CHECK(tail.first == 60);
+    CHECK(tail.last == 119);
+    CHECK(tail.cause == (new_ids ? UnsolvedCause::kNotConnected : UnsolvedCause::kTracksLost));
+    CHECK(s.summary().message.find("60-119") != std::string::npos);
+    CHECK(s.summary().message.find(new_ids ? "not connected" : "tracks lost") != std::string::npos);
+    for (int f = 0; f < 120; ++f) {
+      const auto& fr = s.frames()[static_cast<std::size_t>(f)];
+      CHECK((fr.unsolved == UnsolvedCause::kNone) == fr.solved);
+    }
+  }
+}
+
+TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver]") {
+  // 114 of 120 frames have tracks: 95 %.
+  Clip c;
+  makeCutClip(c, 120, 114, false);
+  SolverOptions o;
+  o.focal_px = 600.0;
+  Solver s(c.tracks, c.options.width, c.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  CHECK(s.status() == Solver::Status::kOk);
+  CHECK(s.solvedFrames() == 114);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[0].solved);
+  CHECK(ranges[1].cause == UnsolvedCause::kTracksLost);
+}
+
+TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[sfm][solver]") {
+  // Every 4th frame of an orbit as a key-frame set; the last third under new track ids.
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, 120, 0.5, 0.3);
+  TrackTable views;
+  views.reserve(30, full.tracks.observations().size() / 4 + 1);
+  for (int v = 0; v < 30; ++v)
+    for (const auto& ob : full.tracks.frame(4 * v))
+      views.add(v, full.tracks.trackId(ob.track) + (v >= 20 ? 1000000 : 0), ob.x, ob.y);
+  views.setFrameCount(30);
+  views.finalize();
+  SolverOptions o;
+  o.focal_px = 600.0;
+  o.keyframe_collection = true;
+  Solver s(views, full.options.width, full.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  INFO(s.summary().message);
+  CHECK(s.status() == Solver::Status::kPartial);
+  CHECK(s.solvedFrames() == 20);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[1].first == 20);
+  CHECK(ranges[1].last == 29);
+  CHECK(ranges[1].cause == UnsolvedCause::kNotConnected);
+  CHECK(s.summary().message.find("views registered") != std::string::npos);
+}
+
+TEST_CASE("Tripod solve: a first frame with fewer than 8 tracks is not counted as solved",
+          "[sfm][solver]") {
+  // The pan clip with frame 0 cut to 5 tracks: the reference becomes frame 1.
+  Clip full;
+  makeClip(full, synth::SceneKind::kPan, 100, 0.0, 0.3);
+  TrackTable tracks;
+  tracks.reserve(100, full.tracks.observations().size());
+  for (int f = 0; f < 100; ++f) {
+    int kept = 0;
+    for (const auto& o : full.tracks.frame(f)) {
+      if (f == 0 && kept == 5) break;
+      tracks.add(f, full.tracks.trackId(o.track), o.x, o.y);
+      ++kept;
+    }
+  }
+  tracks.setFrameCount(100);
+  tracks.finalize();
+  SolverOptions o;
+  o.focal_px = 600.0;
+  Solver s(tracks, full.options.width, full.options.height, o);
+  REQUIRE(s.calibrate());
+  CHECK_FALSE(s.initialize());
+  CHECK(s.status() == Solver::Status::kRotationOnly);
+  CHECK_FALSE(s.frames()[0].solved);
+  CHECK(s.frames()[0].unsolved == UnsolvedCause::kTracksLost);
+  CHECK(s.solvedFrames() == 99);
+  CHECK(s.frames()[1].pose.R_cw.isApprox(Eigen::Matrix3d::Identity()));
 }

@@ -95,7 +95,7 @@ SolveRun solveEpitrack(const std::vector<Image<uint8_t>>& frames, const FeatureT
   lap(run.adjustment);
   run.status = toString(solver.status());
   run.solved = solver.solvedFrames();
-  run.focal = solver.focal();
+  run.focal = solver.summary().focal_px;
   for (std::size_t f = 0; f < solver.frames().size(); ++f) {
     const SolvedFrame& s = solver.frames()[f];
     if (!s.solved) continue;

@@ -20,6 +20,7 @@
 #include "hal/io/tracks_csv.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
+#include "tools/export/clip_input.hpp"
 #include "tools/export/output_writers.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
 #include "tools/export/reprojection_errors.hpp"
@@ -273,6 +274,7 @@ int runSolve(const SolveCommandOptions& o) {
   std::vector<int> features_per_frame;
   bool decision_reported = false;
   std::vector<double> timestamps;
+  std::vector<std::string> frame_paths;  // the file of each readable frame, for the exports
   const bool draw_frames = o.render != "none" || o.overlay == "tracks";
   const bool keep_frames = draw_frames && o.input == "-";  // stdin cannot be re-read
   std::vector<Image<uint8_t>> kept;
@@ -369,6 +371,7 @@ int runSolve(const SolveCommandOptions& o) {
       }
     }
     timestamps.push_back(frame.timestamp_s);
+    frame_paths.emplace_back(frame.path);
     if (keep_frames) {
       kept.emplace_back(width, height);
       copyPixels<uint8_t>(frame.luma, kept.back().view());
@@ -442,10 +445,11 @@ int runSolve(const SolveCommandOptions& o) {
   // after it, the solve is complete and its exports are written (quickly) before stopping.
   const auto stopped = [&](const char* stage) {
     progress.end();
-    rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
-    rec.focal_source = solver.focalSource();
-    rec.focal_observable = solver.focalObservable();
-    rec.motion = solver.motion();
+    const SolverSummary sum = solver.summary();
+    rec.intrinsics = CameraIntrinsics::centered(width, height, sum.focal_px);
+    rec.focal_source = toString(sum.focal_source);
+    rec.focal_observable = sum.focal_observable;
+    rec.motion = toString(sum.motion);
     return stopInterrupted(rec, o.out_dir, stage,
                            std::to_string(frames) + " frames tracked, solve not finished");
   };
@@ -470,23 +474,25 @@ int runSolve(const SolveCommandOptions& o) {
   if (interruptRequested()) stop_stage = "bundle_adjustment";
 
   // --- reconstruction ------------------------------------------------------------------------
-  rec.intrinsics = CameraIntrinsics::centered(width, height, solver.focal());
-  rec.intrinsics.cx = solver.cx();
-  rec.intrinsics.cy = solver.cy();
-  rec.intrinsics.fy = solver.focal() * solver.aspect();
-  rec.intrinsics.k1 = solver.k1();
-  rec.intrinsics.k2 = solver.k2();
-  rec.focal_source = solver.focalSource();
-  rec.focal_observable = solver.focalObservable();
+  const SolverSummary summary = solver.summary();
+  rec.intrinsics = CameraIntrinsics::centered(width, height, summary.focal_px);
+  rec.intrinsics.cx = summary.cx;
+  rec.intrinsics.cy = summary.cy;
+  rec.intrinsics.fy = summary.focal_px * summary.aspect;
+  rec.intrinsics.k1 = summary.k1;
+  rec.intrinsics.k2 = summary.k2;
+  rec.focal_source = toString(summary.focal_source);
+  rec.focal_observable = summary.focal_observable;
   if (so.refine_given_focal && so.focal_px > 0.0) rec.focal_given_px = so.focal_px;
-  rec.motion = solver.motion();
-  rec.status = toString(solver.status());
-  rec.message = solver.message();
+  rec.motion = toString(summary.motion);
+  rec.status = toString(summary.status);
+  rec.message = summary.message;
   if (!input_error.empty())
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
-  rec.focal_fallback = solver.focalFallback();
+  io::describeClipInput(rec, o.input, frame_paths, source->info().fps);
+  rec.focal_fallback = toString(summary.focal_fallback);
   for (const auto& p : solver.focalProfile())
     rec.focal_profile.push_back(
         {p.start_px, p.focal_px, p.refined, p.median_reproj_px, p.solved_frames});
@@ -494,6 +500,9 @@ int runSolve(const SolveCommandOptions& o) {
     if (!p.observable) continue;
     rec.focal_estimates.push_back({p.frame_a, p.frame_b, p.focal_px, p.coherent});
   }
+  for (const FrameRange& r : frameRanges(solver.frames()))
+    rec.frame_ranges.push_back({r.first, r.last, r.solved, r.solved ? "" : toString(r.cause),
+                                r.solved ? "" : describe(r.cause)});
   for (int f = 0; f < frames; ++f) {
     const auto& fr = solver.frames()[static_cast<std::size_t>(f)];
     io::SolvedCamera c;
@@ -529,7 +538,8 @@ int runSolve(const SolveCommandOptions& o) {
     rec_observation[i] = static_cast<int>(rec.observations.size());
     rec.observations.push_back({ob.frame, tracks.trackId(ob.track), ob.x, ob.y});
   }
-  if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly) {
+  if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||
+      solver.status() == Solver::Status::kPartial) {
     const auto sf = io::applySceneFrame(rec, o.scene);
     (void)sf;
   }
@@ -692,17 +702,24 @@ int runSolve(const SolveCommandOptions& o) {
   char refined_from[64] = "";
   if (rec.focal_given_px > 0.0)
     std::snprintf(refined_from, sizeof(refined_from), ", refined from %.2f", rec.focal_given_px);
+  // No nan in what a user reads: a solve without a reprojected observation has no mean.
+  char reprojection[48] = "no reprojected observation";
+  if (std::isfinite(mean))
+    std::snprintf(reprojection, sizeof(reprojection), "reprojection mean %.3f px", mean);
+  char focal_text[32] = "unknown";
+  if (std::isfinite(summary.focal_px) && summary.focal_px > 0.0)
+    std::snprintf(focal_text, sizeof(focal_text), "%.2f px", summary.focal_px);
   char line[512];
   std::snprintf(line, sizeof(line),
-                "%s: %d/%d frames solved, focal %.2f px (%s%s%s%s), %zu points, reprojection "
-                "mean %.3f px, %.2f s; outputs in %s",
-                rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
+                "%s: %d/%d frames solved, focal %s (%s%s%s%s), %zu points, %s, %.2f s; outputs "
+                "in %s",
+                rec.status.c_str(), solver.solvedFrames(), frames, focal_text,
                 rec.focal_source.c_str(), refined_from,
                 rec.focal_observable ? "" : ", not observable from F",
                 rec.focal_fallback == "profile"
                     ? ", from the reprojection profile"
                     : (rec.focal_fallback == "profile-flat" ? ", profile flat: a guess" : ""),
-                rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
+                rec.points.size(), reprojection, rec.seconds.total, o.out_dir.c_str());
   if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   if (!stop_stage.empty()) {
@@ -713,8 +730,14 @@ int runSolve(const SolveCommandOptions& o) {
     std::fprintf(stderr, "epitrack-solve: input stopped early: %s\n", input_error.c_str());
     return 1;
   }
+  if (solver.status() == Solver::Status::kPartial) {
+    // Outputs written, but not of the whole clip: the ranges and their causes are named here and
+    // in summary.json (solved_ranges, unsolved_ranges).
+    std::fprintf(stderr, "epitrack-solve: partial: %s\n", summary.message.c_str());
+    return kExitPartial;
+  }
   if (!ok) {
-    std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());
+    std::fprintf(stderr, "epitrack-solve: %s\n", summary.message.c_str());
     // A tripod solve is a result (every camera's rotation and the focal), not a failure.
     return solver.status() == Solver::Status::kRotationOnly ? 0 : 1;
   }

@@ -1,0 +1,145 @@
+// Solver: which frames are solved, why the others are not, and when a solve is partial.
+#include "algo/sfm/solver.hpp"
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "algo/math/median.hpp"
+
+namespace epitrack {
+
+const char* toString(UnsolvedCause c) {
+  switch (c) {
+    case UnsolvedCause::kNone:
+      return "solved";
+    case UnsolvedCause::kTracksLost:
+      return "tracks-lost";
+    case UnsolvedCause::kNotConnected:
+      return "not-connected";
+    case UnsolvedCause::kTooLittleParallax:
+      return "too-little-parallax";
+    case UnsolvedCause::kResectionFailed:
+      return "resection-failed";
+    case UnsolvedCause::kNoReconstruction:
+      return "no-reconstruction";
+  }
+  return "unknown";
+}
+
+const char* describe(UnsolvedCause c) {
+  switch (c) {
+    case UnsolvedCause::kNone:
+      return "solved";
+    case UnsolvedCause::kTracksLost:
+      return "tracks lost: too few tracked features for a pose, or under a quarter of a solved "
+             "frame's (blank or blurred view, a cut)";
+    case UnsolvedCause::kNotConnected:
+      return "not connected: its tracks reach no solved frame";
+    case UnsolvedCause::kTooLittleParallax:
+      return "too little parallax: tracks shared with solved frames, too few of them became 3D "
+             "points";
+    case UnsolvedCause::kResectionFailed:
+      return "resection failed: 3D points in view, but no pose fits enough of them";
+    case UnsolvedCause::kNoReconstruction:
+      return "no reconstruction: the solve failed before any frame was solved";
+  }
+  return "unknown";
+}
+
+std::vector<FrameRange> frameRanges(const std::vector<SolvedFrame>& frames) {
+  std::vector<FrameRange> ranges;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const bool solved = frames[i].solved;
+    const UnsolvedCause cause = solved ? UnsolvedCause::kNone : frames[i].unsolved;
+    if (!ranges.empty() && ranges.back().solved == solved && ranges.back().cause == cause &&
+        ranges.back().last + 1 == static_cast<int>(i)) {
+      ranges.back().last = static_cast<int>(i);
+      continue;
+    }
+    ranges.push_back({static_cast<int>(i), static_cast<int>(i), solved, cause});
+  }
+  return ranges;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Coverage: why each unsolved frame is unsolved, and whether the solve may be called ok.
+
+void Solver::assessCoverage() {
+  const int n = tracks_.frameCount();
+  const int solved = solvedFrames();
+  // Tracks seen in at least one solved frame: what links a frame to the reconstruction.
+  std::vector<uint8_t> seen_solved(static_cast<std::size_t>(tracks_.trackCount()), 0);
+  for (int f = 0; f < n; ++f) {
+    if (!frames_[static_cast<std::size_t>(f)].solved) continue;
+    for (const auto& o : tracks_.frame(f)) seen_solved[static_cast<std::size_t>(o.track)] = 1;
+  }
+  // Points a pose needs: PnP's minimum (registerFrame), or the tripod's homography minimum.
+  const int need = tripod_ ? 8 : options_.keyframe_collection ? options_.keyframe_min_inliers : 12;
+  // A frame that keeps less than a quarter of a solved frame's usual tracks has lost them, even
+  // when a few remain (tracks coasting onto a blank wall for a few frames).
+  std::vector<double> solved_features;
+  for (int f = 0; f < n; ++f)
+    if (frames_[static_cast<std::size_t>(f)].solved)
+      solved_features.push_back(static_cast<double>(tracks_.frame(f).size()));
+  const double lost_below = 0.25 * upperMedian(solved_features);
+  for (int f = 0; f < n; ++f) {
+    auto& fr = frames_[static_cast<std::size_t>(f)];
+    if (fr.solved) {
+      fr.unsolved = UnsolvedCause::kNone;
+      continue;
+    }
+    if (solved == 0) {
+      fr.unsolved = UnsolvedCause::kNoReconstruction;
+      continue;
+    }
+    const int features = static_cast<int>(tracks_.frame(f).size());
+    int connected = 0, mapped = 0;
+    for (const auto& o : tracks_.frame(f)) {
+      connected += seen_solved[static_cast<std::size_t>(o.track)];
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      mapped += p >= 0 && points_[static_cast<std::size_t>(p)].valid ? 1 : 0;
+    }
+    if (features < need || features < lost_below)
+      fr.unsolved = UnsolvedCause::kTracksLost;
+    else if (connected < need)
+      fr.unsolved = UnsolvedCause::kNotConnected;
+    else if (tripod_ || mapped >= need)
+      fr.unsolved = UnsolvedCause::kResectionFailed;
+    else
+      fr.unsolved = UnsolvedCause::kTooLittleParallax;
+  }
+  if (status_ != Status::kOk && status_ != Status::kRotationOnly) return;
+  if (n == 0 || static_cast<double>(solved) >= options_.min_solved_fraction * n) return;
+  // Partial: name the unsolved ranges, the longest first (a key-frame set can have many).
+  std::vector<FrameRange> gaps;
+  for (const auto& r : frameRanges(frames_))
+    if (!r.solved) gaps.push_back(r);
+  std::stable_sort(gaps.begin(), gaps.end(), [](const FrameRange& a, const FrameRange& b) {
+    return a.last - a.first > b.last - b.first;
+  });
+  constexpr std::size_t kNamed = 6;
+  std::string text = (tripod_ ? "tripod solve (rotation only), " : "") + std::to_string(solved) +
+                     " of " + std::to_string(n) +
+                     (options_.keyframe_collection ? " views registered" : " frames solved") +
+                     "; unsolved:";
+  // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on a chain of string sums here.
+  for (std::size_t i = 0; i < gaps.size() && i < kNamed; ++i) {
+    const auto& g = gaps[i];
+    text += i == 0 ? " " : "; ";
+    text += std::to_string(g.first);
+    if (g.last > g.first) {
+      text += '-';
+      text += std::to_string(g.last);
+    }
+    text += " (";
+    text += describe(g.cause);
+    text += ')';
+  }
+  if (gaps.size() > kNamed)
+    text += "; and " + std::to_string(gaps.size() - kNamed) + " more unsolved ranges";
+  status_ = Status::kPartial;
+  message_ = text;
+}
+
+}  // namespace epitrack

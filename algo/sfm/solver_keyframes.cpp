@@ -1,0 +1,206 @@
+// Solver: the key-frame mode (SolverOptions::keyframe_collection).
+#include "algo/sfm/solver.hpp"
+
+#include <vector>
+
+#include "algo/geometry/essential.hpp"
+#include "algo/geometry/essential_five_point.hpp"
+#include "algo/sfm/reprojection.hpp"
+
+namespace epitrack {
+
+// ---------------------------------------------------------------------------------------------
+// Key frames (SolverOptions::keyframe_collection): initial pair over the whole clip, next best
+// view registration.
+
+void Solver::initialCandidatesAll(const std::function<void(int, int)>& consider) const {
+  // Every frame with each of its next keyframe_pair_gap frames that shares 30 tracks with it.
+  const int n = tracks_.frameCount();
+  for (int a = 0; a + 1 < n; ++a) {
+    for (int b = a + 1; b < n && b <= a + options_.keyframe_pair_gap; ++b) {
+      if (commonTracks(a, b, nullptr, nullptr) < 30) continue;
+      consider(a, b);
+    }
+  }
+}
+
+bool Solver::registerByRelativePose(int f, int reference) {
+  // Correspondences between the solved reference and f.
+  std::vector<Eigen::Vector2d> n_ref, n_f;
+  for (const auto& o : tracks_.frame(reference)) {
+    const TrackObservation* of = tracks_.find(o.track, f);
+    if (of == nullptr) continue;
+    n_ref.push_back(normalized(o));
+    n_f.push_back(normalized(*of));
+  }
+  if (static_cast<int>(n_ref.size()) < options_.keyframe_min_pair_inliers) return false;
+  EssentialRansac er(static_cast<int>(n_ref.size()));
+  EssentialRansacOptions eo;
+  eo.ransac.threshold = options_.reproj_threshold_px;
+  eo.ransac.seed = options_.seed + 7919u * static_cast<uint64_t>(f);
+  eo.focal_px = f_;
+  EssentialRansacResult e;
+  if (er.estimate(n_ref, n_f, eo, e) != EssentialRansac::Status::kOk ||
+      e.inliers < options_.keyframe_min_pair_inliers ||
+      2 * e.inliers < static_cast<int>(n_ref.size()))
+    return false;
+  const std::vector<uint8_t> mask(e.mask.begin(), e.mask.end());
+  RelativePoseResult rp;
+  if (!recoverRelativePose(e.E, n_ref, n_f, mask, rp)) return false;
+  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
+  PoseCw rel = rp.pose;
+  refineRelativePose(n_ref, n_f, mask, f_, rel);
+  // Pose of f: R = R_rel R_ref, t = R_rel t_ref + lambda t_rel; lambda from the map points f sees.
+  const PoseCw& ref = frames_[static_cast<std::size_t>(reference)].pose;
+  PoseCw pose;
+  pose.R_cw = rel.R_cw * ref.R_cw;
+  const Eigen::Vector3d t0 = rel.R_cw * ref.t_cw;
+  const Eigen::Vector3d b = rel.t_cw.normalized();
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> x;
+  std::vector<double> lambdas;
+  for (const auto& o : tracks_.frame(f)) {
+    const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+    if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
+    const Eigen::Vector3d A = pose.R_cw * points_[static_cast<std::size_t>(p)].X + t0;
+    const Eigen::Vector3d u = normalized(o).homogeneous();
+    // (A + lambda b) parallel to u: lambda minimises |A x u + lambda (b x u)|.
+    const Eigen::Vector3d bu = b.cross(u), au = A.cross(u);
+    const double den = bu.squaredNorm();
+    if (!(den > 1e-12)) continue;
+    X.push_back(points_[static_cast<std::size_t>(p)].X);
+    x.push_back(normalized(o));
+    lambdas.push_back(-au.dot(bu) / den);
+  }
+  if (static_cast<int>(X.size()) < options_.keyframe_min_scale_points) return false;
+  const double t_px = options_.reproj_threshold_px;
+  const auto inliersFor = [&](const PoseCw& candidate, std::vector<uint8_t>* keep) {
+    int n = 0;
+    for (std::size_t i = 0; i < X.size(); ++i) {
+      double error = 0.0;
+      const bool in = reprojectionErrorPx(candidate, X[i], x[i], f_, error) && error <= t_px;
+      n += in ? 1 : 0;
+      if (keep != nullptr) (*keep)[i] = in ? 1 : 0;
+    }
+    return n;
+  };
+  // Every point's lambda as a hypothesis; the one most points agree with wins (a 1-D RANSAC).
+  int best_n = 0;
+  double best_lambda = 0.0;
+  for (const double l : lambdas) {
+    if (!(l > 0.0)) continue;  // the camera moves along +t_rel (cheirality of E)
+    PoseCw c = pose;
+    c.t_cw = t0 + l * b;
+    const int n = inliersFor(c, nullptr);
+    if (n > best_n) {
+      best_n = n;
+      best_lambda = l;
+    }
+  }
+  if (best_n < options_.keyframe_min_scale_points) return false;
+  pose.t_cw = t0 + best_lambda * b;
+  // Least-squares lambda over the agreeing points (the rotation stays E's: it rests on many more
+  // correspondences than the handful of points that fix the distance).
+  std::vector<uint8_t> keep(X.size(), 0);
+  inliersFor(pose, &keep);
+  double num = 0.0, den = 0.0;
+  for (std::size_t i = 0; i < X.size(); ++i) {
+    if (!keep[i]) continue;
+    const Eigen::Vector3d A = pose.R_cw * X[i] + t0;
+    const Eigen::Vector3d u = x[i].homogeneous();
+    const Eigen::Vector3d bu = b.cross(u), au = A.cross(u);
+    num -= au.dot(bu);
+    den += bu.squaredNorm();
+  }
+  if (den > 0.0 && num / den > 0.0) {
+    PoseCw c = pose;
+    c.t_cw = t0 + (num / den) * b;
+    if (inliersFor(c, nullptr) >= best_n) pose = c;
+  }
+  const PoseCw refined = pose;
+  const int n = inliersFor(refined, nullptr);
+  if (n < options_.keyframe_min_scale_points ||
+      n < options_.keyframe_min_inlier_ratio * static_cast<double>(X.size()))
+    return false;
+  auto& fr = frames_[static_cast<std::size_t>(f)];
+  fr.solved = true;
+  fr.pose = refined;
+  fr.inliers = n;
+  fr.rms_px = 0.0;
+  return true;
+}
+
+bool Solver::registerBestViews() {
+  const int n = tracks_.frameCount();
+  triangulateNewTracks(init_b_);
+  // Map points each frame sees when it was last tried (a failed frame is tried again only when
+  // the map it sees has grown by a quarter, so the loop ends); the solved count when its
+  // relative pose was last tried.
+  std::vector<int> tried_at(static_cast<std::size_t>(n), -1);
+  std::vector<int> relative_tried_at(static_cast<std::size_t>(n), -1);
+  const auto visible = [&](int f) {
+    int c = 0;
+    for (const auto& o : tracks_.frame(f)) {
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      c += p >= 0 && points_[static_cast<std::size_t>(p)].valid ? 1 : 0;
+    }
+    return c;
+  };
+  int accepted = 0;
+  const auto accept = [&](int f) {
+    addKeyframe(f);
+    triangulateNewTracks(f);
+    // Short tracks chain the views weakly: a global adjustment every few frames keeps the early
+    // ones from being frozen with their first (least constrained) poses.
+    const int every = options_.keyframe_global_every;
+    adjust(every > 0 && ++accepted % every == 0);
+  };
+  for (;;) {
+    int best = -1, best_count = 0;
+    for (int f = 0; f < n; ++f) {
+      if (frames_[static_cast<std::size_t>(f)].solved) continue;
+      const int c = visible(f);
+      if (c < options_.keyframe_min_inliers) continue;
+      if (tried_at[static_cast<std::size_t>(f)] >= 0 &&
+          c * 4 < tried_at[static_cast<std::size_t>(f)] * 5)
+        continue;
+      if (c > best_count) {
+        best_count = c;
+        best = f;
+      }
+    }
+    if (best >= 0) {
+      tried_at[static_cast<std::size_t>(best)] = best_count;
+      const bool reg =
+          registerFrame(best, options_.keyframe_min_inliers, options_.keyframe_min_inlier_ratio);
+      if (reg) accept(best);
+      continue;
+    }
+    if (!options_.keyframe_relative_pose) break;
+    // No frame left for PnP: the unsolved frame sharing most tracks with a solved one, from its
+    // relative pose to that frame.
+    const int solved = solvedFrames();
+    int rel = -1, rel_ref = -1, rel_common = 0;
+    for (int f = 0; f < n; ++f) {
+      if (frames_[static_cast<std::size_t>(f)].solved ||
+          relative_tried_at[static_cast<std::size_t>(f)] == solved)
+        continue;
+      for (int r = 0; r < n; ++r) {
+        if (!frames_[static_cast<std::size_t>(r)].solved) continue;
+        const int c = commonTracks(r, f, nullptr, nullptr);
+        if (c > rel_common) {
+          rel_common = c;
+          rel = f;
+          rel_ref = r;
+        }
+      }
+    }
+    if (rel < 0 || rel_common < options_.keyframe_min_pair_inliers) break;
+    relative_tried_at[static_cast<std::size_t>(rel)] = solved;
+    const bool ok = registerByRelativePose(rel, rel_ref);
+    if (ok) accept(rel);
+  }
+  return true;
+}
+
+}  // namespace epitrack

@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Sourced by the cross stages (.ci/cross_aarch64.sh, .ci/cross_armhf.sh): the bit-exact tracks.csv
 # check. A fixed synthetic clip is rendered and tracked natively, then tracked from the same frame
 # directory (PGM frames: the directory replay path) by the target build under emulation; the two

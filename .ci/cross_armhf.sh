@@ -20,7 +20,7 @@ source "$root/.ci/cross_common.sh"
 EPITRACK_BUILD_TARGETS="epitrack-track epitrack_algo_tests epitrack_hal_tests
   epitrack_hal_alloc_tests epitrack_lk_kernels_tests" \
   EPITRACK_EXPECT_LK_ISA=neon \
-  EPITRACK_CTEST_ARGS="--timeout 600 -L ^(algo|hal|simd)$ ${EPITRACK_CTEST_ARGS:-}" \
+  EPITRACK_CTEST_ARGS="--timeout 600 -L ^(algo|hal|simd)$ -LE slow ${EPITRACK_CTEST_ARGS:-}" \
   bash "$root/tools/cross.sh" armhf "$cross" --test
 
 emulator=$(target_emulator "$cross")

@@ -339,9 +339,9 @@ int main(int argc, char** argv) {
                    tracker.map().calibrationPairs());
     }
     if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
-    const int n = epitrack::device::formatPoseLine(line, sizeof(line), frame.index,
-                                                   frame.timestamp_s, result.map.status,
-                                                   result.features, result.map.pose, result.ms);
+    const int n = epitrack::device::formatPoseLine(
+        line, sizeof(line), frame.index, frame.timestamp_s, result.map.status, result.features,
+        result.map.pose, result.ms, result.map.init);
     if (n > 0) std::fwrite(line, 1, static_cast<std::size_t>(n), out);
   }
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -13,10 +14,25 @@ namespace epitrack::device {
 
 /// Formats one pose line (ARCHITECTURE.md `epitrack-device`): `frame`, `t`, `status`,
 /// `features`, and when tracking `q` [qx, qy, qz, qw] and `p` [x, y, z] of T_wc (the inverse of
-/// the world-to-camera `pose`), then `ms`. Writes into `buffer` (no allocation) and returns the
-/// length, newline included.
+/// the world-to-camera `pose`); while initializing `init`, why the map does not exist yet
+/// (`reason`, LiveInitStage) and how far it got (`tracks` alive, `common` with the reference,
+/// their median `displacement_px`, triangulated `points` and their median `parallax_deg`, and
+/// `pairs` of the focal self-calibration); then `ms`. Writes into `buffer` (no allocation) and
+/// returns the length, newline included.
 inline int formatPoseLine(char* buffer, std::size_t size, int64_t frame, double t,
-                          LiveStatus status, int features, const PoseCw& pose, double ms) {
+                          LiveStatus status, int features, const PoseCw& pose, double ms,
+                          const LiveInitProgress& init = {}) {
+  if (status == LiveStatus::kInitializing) {
+    return std::snprintf(
+        buffer, size,
+        "{\"frame\": %lld, \"t\": %.6f, \"status\": \"%s\", \"features\": %d, \"init\": "
+        "{\"reason\": \"%s\", \"tracks\": %d, \"common\": %d, \"displacement_px\": %.2f, "
+        "\"points\": %d, \"parallax_deg\": %.3f, \"pairs\": %d}, \"ms\": %.3f}\n",
+        static_cast<long long>(frame), t, toString(status), features, toString(init.stage),
+        init.tracks_alive, init.common_tracks,
+        std::isfinite(init.displacement_px) ? init.displacement_px : 0.0, init.points,
+        std::isfinite(init.parallax_deg) ? init.parallax_deg : 0.0, init.pairs, ms);
+  }
   if (status == LiveStatus::kTracking) {
     const Eigen::Matrix3d R_wc = pose.R_cw.transpose();
     Eigen::Quaterniond q(R_wc);

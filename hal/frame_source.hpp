@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "algo/image/image_view.hpp"
 
@@ -31,6 +32,10 @@ struct Frame {
   /// bytes unchanged so that a recording replays bit-identically.
   const uint8_t* encoded = nullptr;
   std::size_t encoded_size = 0;
+  /// The file this frame was read from, as listed (image directories); empty for streams and
+  /// devices. Valid until the source is destroyed. The exports name the frames with it (COLMAP's
+  /// images.txt, the Blender and Nuke plates).
+  std::string_view path;
 };
 
 struct SourceInfo {

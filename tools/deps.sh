@@ -7,6 +7,7 @@
 #   tools/deps.sh video       ffmpeg (ffprobe checks of written videos)
 #   tools/deps.sh browser     chromium (report rendering check)
 #   tools/deps.sh colmap      COLMAP (the reference solves of tools/figures/colmap_reference.sh)
+#   tools/deps.sh clients     Blender and COLMAP (the exports loaded by the real programs, tests/export)
 set -euo pipefail
 
 want=()
@@ -21,6 +22,7 @@ for group in "${@:-base}"; do
     video) want+=(ffmpeg) ;;
     browser) want+=(chromium) ;;
     colmap) want+=(colmap) ;;
+    clients) want+=(blender colmap) ;;
     *) echo "deps.sh: unknown group '$group'" >&2; exit 2 ;;
   esac
 done

@@ -5,19 +5,15 @@
 
 #include "algo/core/assert.hpp"
 #include "algo/geometry/triangulation.hpp"
+#include "algo/math/median.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
+#include "algo/sfm/reprojection.hpp"
 
 namespace epitrack {
 
 namespace {
 constexpr double kRadToDeg = 57.29577951308232;
 
-BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
-PoseCw fromBa(const BaCamera& c) {
-  PoseCw p;
-  p.R_cw = c.R_cw;
-  p.t_cw = c.t_cw;
-  return p;
-}
 }  // namespace
 
 const char* toString(LiveStatus s) {
@@ -28,6 +24,28 @@ const char* toString(LiveStatus s) {
       return "tracking";
     case LiveStatus::kLost:
       return "lost";
+  }
+  return "unknown";
+}
+
+const char* toString(LiveInitStage s) {
+  switch (s) {
+    case LiveInitStage::kNone:
+      return "none";
+    case LiveInitStage::kCalibrating:
+      return "calibrating-focal";
+    case LiveInitStage::kNewReference:
+      return "new-reference";
+    case LiveInitStage::kTooFewTracks:
+      return "too-few-tracks";
+    case LiveInitStage::kTooLittleMotion:
+      return "too-little-motion";
+    case LiveInitStage::kNoTwoViewGeometry:
+      return "no-two-view-geometry";
+    case LiveInitStage::kTooFewPoints:
+      return "too-few-points";
+    case LiveInitStage::kTooLittleParallax:
+      return "too-little-parallax";
   }
   return "unknown";
 }
@@ -147,12 +165,7 @@ LiveMap::KeyframeObservation* LiveMap::keyframeObservations(int64_t seq) {
                   static_cast<std::size_t>(options_.max_features)];
 }
 
-double LiveMap::median(std::span<double> values) {
-  if (values.empty()) return 0.0;
-  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
-}
+double LiveMap::median(std::span<double> values) { return upperMedian(values); }
 
 // ---------------------------------------------------------------------------------------------
 // Track bookkeeping: the tracker's ids only grow and a lost id never returns, so the records stay
@@ -200,9 +213,13 @@ void LiveMap::mergeTracks(std::span<const TrackedFeature> features) {
 LiveFrameResult LiveMap::process(std::span<const TrackedFeature> features) {
   LiveFrameResult result;
   mergeTracks(features);
+  result.init.tracks_alive = record_count_;
   if (state_ == State::kCalibrating) {
     result.status = LiveStatus::kInitializing;
+    result.init.stage = LiveInitStage::kCalibrating;
     result.calibrated = calibrateStep();
+    result.init.pairs = static_cast<int>(
+        std::min<int64_t>(calib_pairs_total_, static_cast<int64_t>(options_.calib_max_pairs)));
     if (result.calibrated) state_ = State::kInitializing;  // the map starts from the next frame
   } else if (state_ == State::kInitializing) {
     result.status = LiveStatus::kInitializing;
@@ -210,6 +227,7 @@ LiveFrameResult LiveMap::process(std::span<const TrackedFeature> features) {
       state_ = State::kTracking;
       result.status = LiveStatus::kTracking;
       result.initialized = true;
+      result.init.stage = LiveInitStage::kNone;
     }
   } else if (trackFrame(result)) {
     result.status = LiveStatus::kTracking;
@@ -335,10 +353,14 @@ bool LiveMap::calibrateStep() {
 // Initialisation from two views (paper §5.1-5.3).
 
 bool LiveMap::tryInitialize(LiveFrameResult& result) {
+  LiveInitProgress& progress = result.init;
   if (ref_frame_ < 0 || frame_ - ref_frame_ > options_.init_max_gap) {
     setReference();
+    progress.stage = LiveInitStage::kNewReference;
+    progress.reference_frame = ref_frame_;
     return false;
   }
+  progress.reference_frame = ref_frame_;
   int common = 0;
   for (int i = 0; i < record_count_; ++i) {
     const auto& r = records_[static_cast<std::size_t>(i)];
@@ -354,12 +376,18 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
     ++common;
   }
   result.map_matches = 0;
+  progress.common_tracks = common;
   if (common < options_.init_min_tracks) {
+    // The reference faded out: this frame becomes the new one.
     setReference();
+    progress.stage = LiveInitStage::kTooFewTracks;
     return false;
   }
   const double disp = median(std::span<double>(scratch_.data(), static_cast<std::size_t>(common)));
+  progress.displacement_px = disp;
+  progress.stage = LiveInitStage::kTooLittleMotion;
   if (disp < options_.init_min_displacement * K_.width) return false;
+  progress.stage = LiveInitStage::kNoTwoViewGeometry;
 
   const auto nc = static_cast<std::size_t>(common);
   const std::span<const Eigen::Vector2d> x1(x1_.data(), nc), x2(x2_.data(), nc);
@@ -394,9 +422,13 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
     scratch_[static_cast<std::size_t>(good)] = t.parallax_deg;
     ++good;
   }
+  progress.points = good;
+  progress.stage = LiveInitStage::kTooFewPoints;
   if (good < options_.init_min_points) return false;
   const double med_parallax =
       median(std::span<double>(scratch_.data(), static_cast<std::size_t>(good)));
+  progress.parallax_deg = med_parallax;
+  progress.stage = LiveInitStage::kTooLittleParallax;
   if (med_parallax < options_.init_min_parallax_deg) return false;
 
   // Accept: keyframe A is the reference (identity), keyframe B this frame.
@@ -505,22 +537,22 @@ void LiveMap::robustRefine(std::size_t matches, PnpResult& pr) {
   int n = 0;
   for (std::size_t j = 0; j < matches; ++j) {
     if (!pr.mask[j]) continue;
-    const Eigen::Vector3d pc = pr.pose.toCamera(X_[j]);
-    if (!(pc.z() > 0.0)) continue;
-    scratch_[static_cast<std::size_t>(n++)] = (pc.hnormalized() - n1_[j]).norm() * K_.fx;
+    double e = 0.0;
+    if (!reprojectionErrorPx(pr.pose, X_[j], n1_[j], K_.fx, e)) continue;
+    scratch_[static_cast<std::size_t>(n++)] = e;
   }
   if (n < options_.min_pnp_inliers) return;
-  const double sigma =
-      median(std::span<double>(scratch_.data(), static_cast<std::size_t>(n))) / 1.1774;
+  const double sigma = median(std::span<double>(scratch_.data(), static_cast<std::size_t>(n))) /
+                       kRayleighMedianPerSigma;
   robust_sigma_px_ = robust_sigma_px_ > 0.0 ? 0.8 * robust_sigma_px_ + 0.2 * sigma : sigma;
   const double cut =
       std::min(options_.reproj_threshold_px,
                std::max(options_.min_outlier_px, options_.outlier_sigmas * robust_sigma_px_));
   int kept = 0;
   for (std::size_t j = 0; j < matches; ++j) {
-    const Eigen::Vector3d pc = pr.pose.toCamera(X_[j]);
+    double e = 0.0;
     const bool keep =
-        pr.mask[j] && pc.z() > 0.0 && (pc.hnormalized() - n1_[j]).norm() * K_.fx <= cut;
+        pr.mask[j] && reprojectionErrorPx(pr.pose, X_[j], n1_[j], K_.fx, e) && e <= cut;
     robust_mask_[j] = keep ? 1 : 0;
     kept += keep ? 1 : 0;
   }

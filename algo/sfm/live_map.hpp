@@ -72,6 +72,32 @@ struct LiveMapOptions {
 enum class LiveStatus { kInitializing, kTracking, kLost };
 const char* toString(LiveStatus s);
 
+/// Why the live map is still initialising: the step of the two-view initialisation (or of the
+/// focal self-calibration before it) that the frame did not pass.
+enum class LiveInitStage {
+  kNone,               ///< not initialising (tracking, lost, or initialised on this frame)
+  kCalibrating,        ///< self-calibrating the focal: F pairs collected so far in `pairs`
+  kNewReference,       ///< a new reference frame was taken (the old one faded out or got old)
+  kTooFewTracks,       ///< fewer tracks common with the reference than init_min_tracks
+  kTooLittleMotion,    ///< the common tracks moved less than init_min_displacement
+  kNoTwoViewGeometry,  ///< F-RANSAC failed, too few inliers, or an ambiguous cheirality
+  kTooFewPoints,       ///< fewer triangulated points than init_min_points
+  kTooLittleParallax,  ///< the points' median parallax below init_min_parallax_deg
+};
+const char* toString(LiveInitStage s);
+
+/// The initialisation's figures on one frame (LiveFrameResult::init), for the device's output.
+struct LiveInitProgress {
+  LiveInitStage stage = LiveInitStage::kNone;
+  int tracks_alive = 0;          ///< tracks in this frame
+  int common_tracks = 0;         ///< of them, also in the reference frame
+  double displacement_px = 0.0;  ///< their median displacement since the reference
+  int points = 0;                ///< points triangulated by this frame's attempt (0: none made)
+  double parallax_deg = 0.0;     ///< their median parallax (0: no attempt got that far)
+  int64_t reference_frame = -1;  ///< frame index of the reference (-1: none)
+  int pairs = 0;                 ///< kCalibrating: F pairs collected for the focal so far
+};
+
 /// What `LiveMap::process` concluded for one frame.
 struct LiveFrameResult {
   LiveStatus status = LiveStatus::kInitializing;
@@ -82,6 +108,7 @@ struct LiveFrameResult {
   bool initialized = false;  ///< the map was (re)initialised on this frame
   bool calibrated = false;   ///< calibration ended on this frame (self-calibrated or fallback)
   int points = 0;            ///< map points in use after the frame
+  LiveInitProgress init;     ///< while kInitializing: why, and how far it got
 };
 
 /// The live 3D tracker of the device (paper §5 run causally, Figure 2): 2D tracks in, a camera

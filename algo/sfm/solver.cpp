@@ -15,7 +15,10 @@
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/math/median.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
+#include "algo/sfm/reprojection.hpp"
 
 namespace epitrack {
 
@@ -33,8 +36,63 @@ const char* toString(Solver::Status s) {
       return "planar-scene";
     case Solver::Status::kInitFailed:
       return "initialization-failed";
+    case Solver::Status::kPartial:
+      return "partial";
   }
   return "unknown";
+}
+
+const char* toString(UnsolvedCause c) {
+  switch (c) {
+    case UnsolvedCause::kNone:
+      return "solved";
+    case UnsolvedCause::kTracksLost:
+      return "tracks-lost";
+    case UnsolvedCause::kNotConnected:
+      return "not-connected";
+    case UnsolvedCause::kTooLittleParallax:
+      return "too-little-parallax";
+    case UnsolvedCause::kResectionFailed:
+      return "resection-failed";
+    case UnsolvedCause::kNoReconstruction:
+      return "no-reconstruction";
+  }
+  return "unknown";
+}
+
+const char* describe(UnsolvedCause c) {
+  switch (c) {
+    case UnsolvedCause::kNone:
+      return "solved";
+    case UnsolvedCause::kTracksLost:
+      return "tracks lost: too few tracked features for a pose, or under a quarter of a solved "
+             "frame's (blank or blurred view, a cut)";
+    case UnsolvedCause::kNotConnected:
+      return "not connected: its tracks reach no solved frame";
+    case UnsolvedCause::kTooLittleParallax:
+      return "too little parallax: tracks shared with solved frames, too few of them became 3D "
+             "points";
+    case UnsolvedCause::kResectionFailed:
+      return "resection failed: 3D points in view, but no pose fits enough of them";
+    case UnsolvedCause::kNoReconstruction:
+      return "no reconstruction: the solve failed before any frame was solved";
+  }
+  return "unknown";
+}
+
+std::vector<FrameRange> frameRanges(const std::vector<SolvedFrame>& frames) {
+  std::vector<FrameRange> ranges;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const bool solved = frames[i].solved;
+    const UnsolvedCause cause = solved ? UnsolvedCause::kNone : frames[i].unsolved;
+    if (!ranges.empty() && ranges.back().solved == solved && ranges.back().cause == cause &&
+        ranges.back().last + 1 == static_cast<int>(i)) {
+      ranges.back().last = static_cast<int>(i);
+      continue;
+    }
+    ranges.push_back({static_cast<int>(i), static_cast<int>(i), solved, cause});
+  }
+  return ranges;
 }
 
 namespace {
@@ -52,20 +110,8 @@ double displacement(const std::vector<Eigen::Vector2d>& a, const std::vector<Eig
   return *it;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-BaCamera toBa(const PoseCw& p) { return BaCamera{p.R_cw, p.t_cw}; }
-PoseCw fromBa(const BaCamera& c) {
-  PoseCw p;
-  p.R_cw = c.R_cw;
-  p.t_cw = c.t_cw;
-  return p;
-}
+// The upper median of a copy (the callers' vectors are theirs to keep).
+double median(std::vector<double> v) { return upperMedian(v); }
 
 }  // namespace
 
@@ -332,9 +378,10 @@ double Solver::medianReprojectionAll() const {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      e.push_back(pc.z() > 0.0 ? (pc.hnormalized() - normalized(o)).norm() * f_
-                               : std::numeric_limits<double>::infinity());
+      double error = 0.0;  // +inf behind the camera
+      reprojectionErrorPx(fr.pose, points_[static_cast<std::size_t>(p)].X, normalized(o), f_,
+                          error);
+      e.push_back(error);
     }
   }
   return e.empty() ? std::numeric_limits<double>::infinity() : median(std::move(e));
@@ -564,8 +611,8 @@ bool Solver::registerFrame(int f, int min_inliers, double min_inlier_ratio) {
     std::vector<uint8_t> keep(X.size(), 0);
     int kept = 0;
     for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = r.pose.toCamera(X[i]);
-      if (pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= robust_cut_px_) {
+      double e = 0.0;
+      if (reprojectionErrorPx(r.pose, X[i], x[i], f_, e) && e <= robust_cut_px_) {
         keep[i] = 1;
         ++kept;
       }
@@ -708,10 +755,10 @@ void Solver::adjust(bool global) {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || point_slot[static_cast<std::size_t>(p)] < 0) continue;
-      const Eigen::Vector3d pc = frames_[static_cast<std::size_t>(f)].pose.toCamera(
-          points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(frames_[static_cast<std::size_t>(f)].pose,
+                               points_[static_cast<std::size_t>(p)].X, normalized(o), f_, e))
+        continue;
       int c = cam_of_frame[static_cast<std::size_t>(f)];
       if (c < 0) {
         c = static_cast<int>(cams.size());
@@ -731,7 +778,7 @@ void Solver::adjust(bool global) {
     // adjustments keep the fixed cut: a young map's residuals are not yet representative.
     std::vector<double> e(candidates.size());
     for (std::size_t i = 0; i < candidates.size(); ++i) e[i] = candidates[i].residual;
-    const double sigma = median(std::move(e)) / 1.1774;
+    const double sigma = median(std::move(e)) / kRayleighMedianPerSigma;
     cut = std::min(cut, std::max(options_.min_outlier_px, options_.outlier_sigmas * sigma));
     if (options_.huber_sigmas > 0.0)
       huber = std::min(options_.huber_px,
@@ -843,7 +890,81 @@ bool Solver::finalize() {
     }
   }
   computeErrors();
+  assessCoverage();
   return solvedFrames() > 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Coverage: why each unsolved frame is unsolved, and whether the solve may be called ok.
+
+void Solver::assessCoverage() {
+  const int n = tracks_.frameCount();
+  const int solved = solvedFrames();
+  // Tracks seen in at least one solved frame: what links a frame to the reconstruction.
+  std::vector<uint8_t> seen_solved(static_cast<std::size_t>(tracks_.trackCount()), 0);
+  for (int f = 0; f < n; ++f) {
+    if (!frames_[static_cast<std::size_t>(f)].solved) continue;
+    for (const auto& o : tracks_.frame(f)) seen_solved[static_cast<std::size_t>(o.track)] = 1;
+  }
+  // Points a pose needs: PnP's minimum (registerFrame), or the tripod's homography minimum.
+  const int need = tripod_ ? 8 : options_.keyframe_collection ? options_.keyframe_min_inliers : 12;
+  // A frame that keeps less than a quarter of a solved frame's usual tracks has lost them, even
+  // when a few remain (tracks coasting onto a blank wall for a few frames).
+  std::vector<double> solved_features;
+  for (int f = 0; f < n; ++f)
+    if (frames_[static_cast<std::size_t>(f)].solved)
+      solved_features.push_back(static_cast<double>(tracks_.frame(f).size()));
+  const double lost_below = 0.25 * median(std::move(solved_features));
+  for (int f = 0; f < n; ++f) {
+    auto& fr = frames_[static_cast<std::size_t>(f)];
+    if (fr.solved) {
+      fr.unsolved = UnsolvedCause::kNone;
+      continue;
+    }
+    if (solved == 0) {
+      fr.unsolved = UnsolvedCause::kNoReconstruction;
+      continue;
+    }
+    const int features = static_cast<int>(tracks_.frame(f).size());
+    int connected = 0, mapped = 0;
+    for (const auto& o : tracks_.frame(f)) {
+      connected += seen_solved[static_cast<std::size_t>(o.track)];
+      const int p = point_of_track_[static_cast<std::size_t>(o.track)];
+      mapped += p >= 0 && points_[static_cast<std::size_t>(p)].valid ? 1 : 0;
+    }
+    if (features < need || features < lost_below)
+      fr.unsolved = UnsolvedCause::kTracksLost;
+    else if (connected < need)
+      fr.unsolved = UnsolvedCause::kNotConnected;
+    else if (tripod_ || mapped >= need)
+      fr.unsolved = UnsolvedCause::kResectionFailed;
+    else
+      fr.unsolved = UnsolvedCause::kTooLittleParallax;
+  }
+  if (status_ != Status::kOk && status_ != Status::kRotationOnly) return;
+  if (n == 0 || static_cast<double>(solved) >= options_.min_solved_fraction * n) return;
+  // Partial: name the unsolved ranges, the longest first (a key-frame set can have many).
+  std::vector<FrameRange> gaps;
+  for (const auto& r : frameRanges(frames_))
+    if (!r.solved) gaps.push_back(r);
+  std::stable_sort(gaps.begin(), gaps.end(), [](const FrameRange& a, const FrameRange& b) {
+    return a.last - a.first > b.last - b.first;
+  });
+  constexpr std::size_t kNamed = 6;
+  std::string text = (tripod_ ? "tripod solve (rotation only), " : "") + std::to_string(solved) +
+                     " of " + std::to_string(n) +
+                     (options_.keyframe_collection ? " views registered" : " frames solved") +
+                     "; unsolved:";
+  for (std::size_t i = 0; i < gaps.size() && i < kNamed; ++i) {
+    const auto& g = gaps[i];
+    text += (i == 0 ? " " : "; ") + std::to_string(g.first) +
+            (g.last > g.first ? "-" + std::to_string(g.last) : std::string()) + " (" +
+            describe(g.cause) + ")";
+  }
+  if (gaps.size() > kNamed)
+    text += "; and " + std::to_string(gaps.size() - kNamed) + " more unsolved ranges";
+  status_ = Status::kPartial;
+  message_ = text;
 }
 
 void Solver::computeErrors() {
@@ -860,9 +981,8 @@ void Solver::computeErrors() {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
       auto& mp = points_[static_cast<std::size_t>(p)];
-      const Eigen::Vector3d pc = fr.pose.toCamera(mp.X);
-      if (!(pc.z() > 0.0)) continue;
-      const double e = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double e = 0.0;
+      if (!reprojectionErrorPx(fr.pose, mp.X, normalized(o), f_, e)) continue;
       if (e > options_.reproj_threshold_px) continue;
       sum += e * e;
       ++count;
@@ -884,9 +1004,10 @@ void Solver::reprojectionStats(double& mean_px, double& median_px) const {
     for (const auto& o : tracks_.frame(f)) {
       const int p = point_of_track_[static_cast<std::size_t>(o.track)];
       if (p < 0 || !points_[static_cast<std::size_t>(p)].valid) continue;
-      const Eigen::Vector3d pc = fr.pose.toCamera(points_[static_cast<std::size_t>(p)].X);
-      if (!(pc.z() > 0.0)) continue;
-      const double v = (pc.hnormalized() - normalized(o)).norm() * f_;
+      double v = 0.0;
+      if (!reprojectionErrorPx(fr.pose, points_[static_cast<std::size_t>(p)].X, normalized(o), f_,
+                               v))
+        continue;
       if (v <= options_.reproj_threshold_px) e.push_back(v);
     }
   }
@@ -961,6 +1082,7 @@ bool Solver::tripodSolve() {
   motion_ = "rotation-only";
   status_ = Status::kRotationOnly;
   message_ = "the camera only rotates (tripod): rotation and focal solved, depth unknown";
+  assessCoverage();
   return solved > 0;
 }
 
@@ -1032,8 +1154,8 @@ bool Solver::registerByRelativePose(int f, int reference) {
   const auto inliersFor = [&](const PoseCw& candidate, std::vector<uint8_t>* keep) {
     int n = 0;
     for (std::size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d pc = candidate.toCamera(X[i]);
-      const bool in = pc.z() > 0.0 && (pc.hnormalized() - x[i]).norm() * f_ <= t_px;
+      double error = 0.0;
+      const bool in = reprojectionErrorPx(candidate, X[i], x[i], f_, error) && error <= t_px;
       n += in ? 1 : 0;
       if (keep != nullptr) (*keep)[i] = in ? 1 : 0;
     }

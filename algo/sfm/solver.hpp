@@ -71,6 +71,34 @@ struct SolverOptions {
   int keyframe_min_pair_inliers = 30;
   int keyframe_min_scale_points = 5;
   int keyframe_global_every = 5;  ///< a global adjustment after every this many registrations
+  /// A reconstruction that solves fewer than this fraction of the frames (views) is `kPartial`,
+  /// never `kOk` (issues 20 and 22: a solve of 8 frames in 200 is not a result to call done).
+  double min_solved_fraction = 0.9;
+};
+
+/// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the
+/// frame's tracks offered; kNone for a solved frame.
+enum class UnsolvedCause {
+  kNone,
+  kTracksLost,    ///< fewer tracked features than a pose needs, or than a quarter of the median
+                  ///< solved frame's (a blank view, blur, a cut)
+  kNotConnected,  ///< its tracks reach no solved frame: nothing links it to the map
+  kTooLittleParallax,  ///< tracks shared with solved frames, but too few became 3D points
+  kResectionFailed,    ///< enough 3D points in view, but no pose fits enough of them
+  kNoReconstruction,   ///< the solve failed before any frame was solved (Solver::status says why)
+};
+/// A short machine-readable name ("tracks-lost", ...).
+const char* toString(UnsolvedCause c);
+/// What the cause means, in a few words for a message ("fewer than 12 tracked features", ...).
+const char* describe(UnsolvedCause c);
+
+/// Consecutive frames [first, last] that are all solved (cause kNone) or all unsolved for the
+/// same cause.
+struct FrameRange {
+  int first = 0;
+  int last = 0;
+  bool solved = false;
+  UnsolvedCause cause = UnsolvedCause::kNone;
 };
 
 /// One frame of the solve.
@@ -80,7 +108,12 @@ struct SolvedFrame {
   PoseCw pose;
   int inliers = 0;
   double rms_px = 0.0;
+  UnsolvedCause unsolved = UnsolvedCause::kNoReconstruction;  ///< kNone once solved
 };
+
+/// The frames split into runs of solved frames and runs of unsolved frames with one cause, in
+/// frame order.
+std::vector<FrameRange> frameRanges(const std::vector<SolvedFrame>& frames);
 
 struct MapPoint {
   Eigen::Vector3d X = Eigen::Vector3d::Zero();
@@ -125,6 +158,10 @@ class Solver {
     kRotationOnly,    ///< tripod: rotation and focal solved, depth unknown
     kPlanarScene,     ///< a single plane and the focal unknown: F is undefined
     kInitFailed,      ///< no candidate pair gave a valid two-view reconstruction
+    /// A reconstruction (general or tripod) that leaves more than 1 - min_solved_fraction of the
+    /// frames unsolved: `frames()` says which and why (SolvedFrame::unsolved), `message()` names
+    /// the unsolved ranges.
+    kPartial,
   };
 
   Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options);
@@ -179,6 +216,9 @@ class Solver {
   int triangulateNewTracks(int f);
   void adjust(bool global);
   bool tripodSolve();
+  /// Sets every frame's UnsolvedCause, then turns kOk / kRotationOnly into kPartial (with a
+  /// message naming the unsolved ranges) when too few frames are solved.
+  void assessCoverage();
   /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
   void sweepFocal();
   [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,

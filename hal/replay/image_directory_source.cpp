@@ -41,6 +41,7 @@ FrameStatus ImageDirectorySource::next(Frame& frame) {
   frame.luma = buffer_.constView();
   frame.index = static_cast<int64_t>(i);
   frame.timestamp_s = static_cast<double>(i) / info_.fps;
+  frame.path = path;
   return FrameStatus::kOk;
 }
 

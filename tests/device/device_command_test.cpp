@@ -138,6 +138,29 @@ TEST_CASE("epitrack-device prints one pose line per frame and a final statistics
     }
   }
   CHECK(tracking > 30);
+  // Each initializing line says why the map does not exist yet and how far it got (issue 20):
+  // the first frame is the reference, the next ones wait for enough motion.
+  REQUIRE(lines[0].status == "initializing");
+  CHECK(lines[0].init_reason == "new-reference");
+  int waiting_for_motion = 0;
+  for (const auto& l : lines) {
+    if (l.status != "initializing") {
+      CHECK(l.init_reason.empty());
+      continue;
+    }
+    CHECK(l.init_tracks == l.features);
+    CHECK((l.init_reason == "new-reference" || l.init_reason == "too-few-tracks" ||
+           l.init_reason == "too-little-motion" || l.init_reason == "no-two-view-geometry" ||
+           l.init_reason == "too-few-points" || l.init_reason == "too-little-parallax"));
+    if (l.init_reason == "too-little-motion") {
+      ++waiting_for_motion;
+      CHECK(l.init_common > 0);
+      CHECK(l.init_common <= l.init_tracks);
+      CHECK(l.init_displacement_px >= 0.0);
+    }
+    if (l.init_reason == "too-little-parallax") CHECK(l.init_parallax_deg > 0.0);
+  }
+  CHECK(waiting_for_motion > 0);
   CHECK(epitrack::test::jsonNumber(summary, "frames", -1) == 50);
   CHECK(epitrack::test::jsonNumber(summary, "tracked", -1) == tracking);
   CHECK(epitrack::test::jsonNumber(summary, "lost", -1) == 0);

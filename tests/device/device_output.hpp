@@ -19,6 +19,10 @@ struct DeviceLine {
   double q[4] = {0, 0, 0, 1};
   double p[3] = {0, 0, 0};
   double ms = 0.0;
+  /// While initializing: why ("init": {"reason"}) and the figures behind it (-1: absent).
+  std::string init_reason;
+  int init_tracks = -1, init_common = -1, init_points = -1;
+  double init_displacement_px = -1.0, init_parallax_deg = -1.0;
 };
 
 inline bool jsonArray(const std::string& json, const std::string& key, double* out, int n) {
@@ -57,6 +61,14 @@ inline void parseDeviceOutput(const std::string& text, std::vector<DeviceLine>& 
     jsonArray(l, "q", d.q, 4);
     jsonArray(l, "p", d.p, 3);
     d.ms = jsonNumber(l, "ms", 0);
+    if (l.find("\"init\": {") != std::string::npos) {
+      d.init_reason = jsonString(l, "reason");
+      d.init_tracks = static_cast<int>(jsonNumber(l, "tracks", -1));
+      d.init_common = static_cast<int>(jsonNumber(l, "common", -1));
+      d.init_points = static_cast<int>(jsonNumber(l, "points", -1));
+      d.init_displacement_px = jsonNumber(l, "displacement_px", -1);
+      d.init_parallax_deg = jsonNumber(l, "parallax_deg", -1);
+    }
     lines.push_back(d);
   }
 }

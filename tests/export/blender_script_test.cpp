@@ -28,8 +28,10 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   }
   Reconstruction rec = et::makeReconstruction(12, 5);
   rec.intrinsics.cx = 330.25;  // off-centre principal point exercises the lens shift
-  rec.intrinsics.cy = 231.5;
+  rec.intrinsics.cy = 201.5;
+  rec.intrinsics.fy = 530.0;  // non-square pixels: the vertical shift depends on the pixel aspect
   rec.has_timestamps = true;  // fixture: 0.04 s per frame, 25 fps
+  rec.cameras.back().solved = false;  // the scene still spans the whole clip
   et::TempDir dir("blender-run");
   std::string error;
   ExportOptions options;
@@ -45,6 +47,7 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   REQUIRE(in.good());
   std::string line;
   int width = 0, height = 0, percent = 0;
+  double aspect_x = 0.0, aspect_y = 0.0;
   int frame_start = 0, frame_end = 0, fps = 0;
   double fps_base = 0.0;
   std::string mode, fit;
@@ -57,7 +60,7 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
     std::string what;
     f >> what;
     if (what == "render") {
-      f >> width >> height >> percent;
+      f >> width >> height >> percent >> aspect_x >> aspect_y;
     } else if (what == "frames") {
       f >> frame_start >> frame_end;
     } else if (what == "fps") {
@@ -89,8 +92,9 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
   CHECK(fit == "HORIZONTAL");
   CHECK(sensor == 24.0);
   CHECK(lens == Approx(500.0 * 24.0 / 640.0));
+  CHECK(aspect_x / aspect_y == Approx(530.0 / 500.0));
   CHECK(frame_start == 1);  // frame 0 + offset 1
-  CHECK(frame_end == 12);   // frame 11 + 1
+  CHECK(frame_end == 12);   // frame 11 + 1, unsolved
   REQUIRE(vertices.size() == rec.points.size());
   for (std::size_t i = 0; i < vertices.size(); ++i)
     CHECK((vertices[i] - rec.points[i].X).norm() < 1e-8);
@@ -114,14 +118,17 @@ TEST_CASE("blender_camera.py builds a camera that reprojects like ours", "[expor
       const Eigen::Vector3d P = R_b.transpose() * (p.X - locations[bf]);
       const double xb = f_px * P.x() / -P.z();
       const double yb = f_px * P.y() / -P.z();
-      // The frame spans x in [shift_x W - W/2, shift_x W + W/2] (pixel units, y up likewise
-      // with shift_y W); pixel edges from the top-left, then our centre-of-pixel origin.
+      // Blender's view plane (BKE_camera_params_compute_viewplane), in units of a pixel's width:
+      // x spans [shift_x W - W/2, shift_x W + W/2]; y spans ycor H around shift_y W, a row being
+      // ycor = aspect_y / aspect_x of those units. Pixel edges from the top-left, then our
+      // centre-of-pixel origin.
+      const double ycor = aspect_y / aspect_x;
       const double u = xb - (shift_x * width - 0.5 * width) - 0.5;
-      const double v = (shift_y * width + 0.5 * height) - yb - 0.5;
+      const double v = ((shift_y * width + 0.5 * ycor * height) - yb) / ycor - 0.5;
       const Eigen::Vector2d ours = et::projectPinhole(rec.intrinsics, c, p.X);
       worst_px = std::max(worst_px, (Eigen::Vector2d(u, v) - ours).norm());
     }
   }
-  CHECK(keys == 10);
+  CHECK(keys == 9);
   CHECK(worst_px < 1e-5);
 }

@@ -24,7 +24,7 @@ namespace {
 bool haveColmap() {
   if (et::run("command -v colmap > /dev/null 2>&1") == 0) return true;
   std::printf(
-      "EPITRACK-SKIP: colmap not installed (apt-get install colmap), COLMAP itself not run\n");
+      "EPITRACK-SKIP: colmap not installed (tools/deps.sh clients), COLMAP itself not run\n");
   return false;
 }
 

@@ -1,4 +1,6 @@
-// libFuzzer harness: the device and option strings users type — the `v4l2:` INPUT
+// libFuzzer harness: the device and option strings users type — epitrack-device's configuration
+// file and its `key value` options (firmware_like/device_config.cpp, `--config FILE` and the
+// command line), the `v4l2:` INPUT
 // (`v4l2:/dev/videoN?width=W&height=H&fps=N&format=grey|yuyv|mjpeg&buffers=B&timeout_ms=T`, in
 // hal/v4l2) and the value parsers of tools/common (`WxH` sizes, comma-separated number lists).
 // Invariants: accepted values are inside their documented ranges; refusals carry a message.
@@ -8,15 +10,56 @@
 
 #include <linux/videodev2.h>
 
+#include "firmware_like/device_config.hpp"
 #include "hal/io/image_codec.hpp"
 #include "hal/v4l2/v4l2_capture_source.hpp"
 #include "tests/fuzz/fuzz_support.hpp"
 #include "tools/common/command_line.hpp"
 
 namespace hal = epitrack::hal;
+namespace device = epitrack::device;
+
+namespace {
+
+// What every accepted configuration satisfies, whatever the keys that were applied.
+void checkConfigInvariants(const device::DeviceConfig& config) {
+  FUZZ_CHECK(config.max_frames >= 0);
+  FUZZ_CHECK(config.warmup_frames >= 0);
+  FUZZ_CHECK(std::isfinite(config.fps) && config.fps > 0.0);
+  FUZZ_CHECK(std::isfinite(config.focal) && config.focal >= 0.0);
+  std::string error;
+  if (!device::validateConfig(config, error)) FUZZ_CHECK(!error.empty());
+}
+
+// The input as a configuration file (`key = value` lines), then each line's value for every key,
+// as the command line passes `--key value`.
+void fuzzDeviceConfig(const std::string& text) {
+  device::DeviceConfig config;
+  std::string error;
+  if (device::applyConfigText(config, text, "fuzz.conf", error)) {
+    checkConfigInvariants(config);
+  } else {
+    FUZZ_CHECK(error.rfind("fuzz.conf:", 0) == 0);
+  }
+  const std::string value = text.substr(0, text.find('\n'));
+  for (const auto& [key, help] : device::configKeys()) {
+    device::DeviceConfig one;
+    std::string reason;
+    if (device::applyConfigValueReason(one, key, value, reason)) {
+      checkConfigInvariants(one);
+    } else {
+      FUZZ_CHECK(!reason.empty());
+    }
+  }
+  std::string unknown;
+  FUZZ_CHECK(!device::applyConfigValue(config, "no-such-key", value, unknown) && !unknown.empty());
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
+  fuzzDeviceConfig(text);
 
   for (const std::string& input : {text, "v4l2:" + text}) {
     hal::V4l2Options options;

@@ -117,7 +117,7 @@ void trackClip(const KeyframeClip& clip, const DescriptorTrackerOptions& o, Trac
 }  // namespace
 
 TEST_CASE("DescriptorTracker: key frames of a rendered orbit, matches against the landmarks",
-          "[matching][keyframes]") {
+          "[matching][keyframes][slow]") {
   const KeyframeClip& clip = keyframeClip();
   for (const bool known_k : {false, true}) {
     INFO((known_k ? "E-RANSAC (intrinsics known)" : "F-RANSAC"));

@@ -94,7 +94,7 @@ Outcome solve(const Clip& c, double focal, int refine_distortion = 0) {
 }  // namespace
 
 TEST_CASE("Orbit with a wandering target, known focal: every frame, ATE <= 0.01 %",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kOrbit, 340, 0.5, 0.3);
   const auto r = solve(c, 600.0);
@@ -107,7 +107,7 @@ TEST_CASE("Orbit with a wandering target, known focal: every frame, ATE <= 0.01 
   CHECK(r.reproj_mean <= 0.5);  // 0.3 px per coordinate: 0.38 px expected
 }
 
-TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][solver]") {
+TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kOrbit, 200, 0.5, 0.3);
   const auto r = solve(c, 0.0);
@@ -119,7 +119,8 @@ TEST_CASE("Orbit with the focal unknown: self-calibrated within 0.1 %", "[sfm][s
   CHECK(r.solved == 200);
 }
 
-TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %", "[sfm][solver]") {
+TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %",
+          "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kHandheld, 200, 0.0, 0.3);
   const auto r = solve(c, 0.0);
@@ -130,7 +131,7 @@ TEST_CASE("Handheld with the focal unknown: focal within 0.5 %, ATE <= 0.05 %", 
   CHECK(r.solved == 200);
 }
 
-TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver]") {
+TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kDolly, 200, 0.0, 0.3);
   const auto r = solve(c, 600.0);
@@ -141,7 +142,7 @@ TEST_CASE("Dolly (forward motion): every frame, ATE <= 0.1 %", "[sfm][solver]") 
 }
 
 TEST_CASE("Exact orbit (optical axes meet): completes with a fallback focal, not observable",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   // Critical for the paper's self-calibration from F: the summary says the focal was not
   // observable (from F) and that the focal is a fallback; the fallback is the minimum of the
   // reprojection profile over whole solves (SolverOptions::focal_sweep), which this 3D scene
@@ -186,7 +187,7 @@ TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][
   CHECK(worst < 0.1);
 }
 
-TEST_CASE("The solve does not depend on small shifts of the clip's start", "[sfm][solver]") {
+TEST_CASE("The solve does not depend on small shifts of the clip's start", "[sfm][solver][slow]") {
   for (const int start : {0, 3, 7}) {
     Clip c;
     makeClip(c, synth::SceneKind::kOrbit, 200, 0.5, 0.3, start);
@@ -223,4 +224,104 @@ TEST_CASE("Too few features and no motion end with a status", "[sfm][solver]") {
   Solver s2(still, 640, 480, {});
   CHECK_FALSE(s2.calibrate());
   CHECK(s2.status() == Solver::Status::kNoMotion);
+}
+
+namespace {
+
+// An orbit whose tracks stop at `cut` (frames after it see nothing: a blank wall), or, with
+// `new_ids`, continue under new track ids (a cut to footage nothing links to the first part).
+void makeCutClip(Clip& c, int frames, int cut, bool new_ids) {
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, frames, 0.5, 0.3);
+  c.options = full.options;
+  c.gt = full.gt;
+  c.tracks.reserve(frames, full.tracks.observations().size());
+  for (int f = 0; f < frames; ++f) {
+    if (f >= cut && !new_ids) continue;
+    for (const auto& o : full.tracks.frame(f))
+      c.tracks.add(f, full.tracks.trackId(o.track) + (f >= cut ? 1000000 : 0), o.x, o.y);
+  }
+  c.tracks.setFrameCount(frames);
+  c.tracks.finalize();
+}
+
+}  // namespace
+
+TEST_CASE("A solve of half the frames is partial and says why the rest is unsolved",
+          "[sfm][solver]") {
+  for (const bool new_ids : {false, true}) {
+    Clip c;
+    makeCutClip(c, 120, 60, new_ids);
+    SolverOptions o;
+    o.focal_px = 600.0;
+    Solver s(c.tracks, c.options.width, c.options.height, o);
+    const bool ok = s.calibrate() && s.initialize() && s.registerFrames() && s.finalize();
+    INFO((new_ids ? "cut to unlinked tracks" : "blank second half") << ": " << s.message());
+    // The reconstruction itself succeeded: it is the coverage that is not ok.
+    CHECK(ok);
+    CHECK(s.status() == Solver::Status::kPartial);
+    CHECK(std::string(toString(s.status())) == "partial");
+    CHECK(s.solvedFrames() <= 60);
+    CHECK(s.solvedFrames() >= 55);
+    const auto ranges = frameRanges(s.frames());
+    REQUIRE(ranges.size() >= 2);
+    int covered = 0;
+    for (const auto& r : ranges) covered += r.last - r.first + 1;
+    CHECK(covered == 120);
+    CHECK(ranges.front().first == 0);
+    const FrameRange& tail = ranges.back();
+    CHECK_FALSE(tail.solved);
+    CHECK(tail.first == 60);
+    CHECK(tail.last == 119);
+    CHECK(tail.cause == (new_ids ? UnsolvedCause::kNotConnected : UnsolvedCause::kTracksLost));
+    CHECK(s.message().find("60-119") != std::string::npos);
+    CHECK(s.message().find(new_ids ? "not connected" : "tracks lost") != std::string::npos);
+    for (int f = 0; f < 120; ++f) {
+      const auto& fr = s.frames()[static_cast<std::size_t>(f)];
+      CHECK((fr.unsolved == UnsolvedCause::kNone) == fr.solved);
+    }
+  }
+}
+
+TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver]") {
+  // 114 of 120 frames have tracks: 95 %.
+  Clip c;
+  makeCutClip(c, 120, 114, false);
+  SolverOptions o;
+  o.focal_px = 600.0;
+  Solver s(c.tracks, c.options.width, c.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  CHECK(s.status() == Solver::Status::kOk);
+  CHECK(s.solvedFrames() == 114);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[0].solved);
+  CHECK(ranges[1].cause == UnsolvedCause::kTracksLost);
+}
+
+TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[sfm][solver]") {
+  // Every 4th frame of an orbit as a key-frame set; the last third under new track ids.
+  Clip full;
+  makeClip(full, synth::SceneKind::kOrbit, 120, 0.5, 0.3);
+  TrackTable views;
+  views.reserve(30, full.tracks.observations().size() / 4 + 1);
+  for (int v = 0; v < 30; ++v)
+    for (const auto& ob : full.tracks.frame(4 * v))
+      views.add(v, full.tracks.trackId(ob.track) + (v >= 20 ? 1000000 : 0), ob.x, ob.y);
+  views.setFrameCount(30);
+  views.finalize();
+  SolverOptions o;
+  o.focal_px = 600.0;
+  o.keyframe_collection = true;
+  Solver s(views, full.options.width, full.options.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  INFO(s.message());
+  CHECK(s.status() == Solver::Status::kPartial);
+  CHECK(s.solvedFrames() == 20);
+  const auto ranges = frameRanges(s.frames());
+  REQUIRE(ranges.size() == 2);
+  CHECK(ranges[1].first == 20);
+  CHECK(ranges[1].last == 29);
+  CHECK(ranges[1].cause == UnsolvedCause::kNotConnected);
+  CHECK(s.message().find("views registered") != std::string::npos);
 }

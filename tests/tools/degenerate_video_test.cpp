@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -39,29 +40,62 @@ std::string frameName(const std::string& dir, int i) {
   return dir + name;
 }
 
+// `json` without its whitespace (summary.json is indented), for searching a fragment of it.
+std::string compact(const std::string& json) {
+  std::string out;
+  for (const char c : json)
+    if (!std::isspace(static_cast<unsigned char>(c))) out += c;
+  return out;
+}
+
 struct Outcome {
   int exit_code = -1;
   std::string summary;
   std::string status;
+  std::string err;     ///< stderr
+  std::string report;  ///< report.html
 };
 
+// True when `text` holds "nan" or "inf" as a word of its own (as printf writes them), in any case.
+bool hasNonFiniteWord(const std::string& text) {
+  const auto letter = [](char c) { return std::isalpha(static_cast<unsigned char>(c)) != 0; };
+  std::string lower(text);
+  for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* word : {"nan", "inf"}) {
+    for (std::size_t at = lower.find(word); at != std::string::npos;
+         at = lower.find(word, at + 1)) {
+      const bool starts = at == 0 || !letter(lower[at - 1]);
+      const bool ends = at + 3 >= lower.size() || !letter(lower[at + 3]);
+      if (starts && ends) return true;
+    }
+  }
+  return false;
+}
+
 // Runs epitrack-solve and checks what every outcome must satisfy: a summary.json without NaN
-// whenever the clip could be read, and no NaN in the camera track.
-Outcome solve(const TempDir& dir, const std::string& input, const std::string& args = "") {
+// whenever the clip could be read, no NaN in the camera track, and none on stderr (which holds
+// the one-line summary unless `quiet`).
+Outcome solve(const TempDir& dir, const std::string& input, const std::string& args = "",
+              bool quiet = true) {
   static int counter = 0;
   const std::string out = dir.file("out" + std::to_string(counter++));
   Outcome o;
   o.exit_code = run(binaryPath("tools/solve/epitrack-solve") + " " + input + " --out " + out +
-                    " --quiet " + args + " 2>" + out + ".err");
+                    (quiet ? " --quiet " : " ") + args + " 2>" + out + ".err");
   o.summary = readWholeFile(out + "/summary.json");
   o.status = jsonString(o.summary, "status");
-  INFO("stderr: " << readWholeFile(out + ".err") << "\nsummary: " << o.summary.substr(0, 400));
+  o.err = readWholeFile(out + ".err");
+  o.report = readWholeFile(out + "/report.html");
+  INFO("stderr: " << o.err << "\nsummary: " << o.summary.substr(0, 400));
   for (const char* bad : {": nan", ": -nan", ": inf", ": -inf", ": NaN"})
     CHECK(o.summary.find(bad) == std::string::npos);
   const std::string cams = readWholeFile(out + "/cameras.tum");
   CHECK(cams.find("nan") == std::string::npos);
+  CHECK_FALSE(hasNonFiniteWord(o.err));
   CHECK(o.exit_code >= 0);
-  CHECK(o.exit_code <= 2);
+  CHECK(o.exit_code <= 3);
+  // 3 is a partial solve and nothing else.
+  CHECK((o.exit_code == 3) == (o.status == "partial"));
   return o;
 }
 
@@ -124,23 +158,32 @@ TEST_CASE("Pure rotation gives a tripod solve and a single plane asks for the fo
   CHECK(jsonNumber(rot.summary, "solved_frames") == 60);
 
   const std::string plane = synth(dir, "plane", "--scene planar --frames 60");
-  const Outcome unknown_focal = solve(dir, plane + "/frames");
+  // Not quiet: the one-line summary of a solve without a 3D point once read "reprojection mean
+  // nan px" (solve() checks stderr for nan and inf).
+  const Outcome unknown_focal = solve(dir, plane + "/frames", "", false);
   CHECK(unknown_focal.exit_code == 1);
   CHECK(unknown_focal.status == "planar-scene");
+  CHECK(unknown_focal.err.find("no reprojected observation") != std::string::npos);
+  // Every frame unsolved, for the reason the solve gives.
+  // (Frame-directory input: each range also names its first and last frame files.)
+  CHECK(compact(unknown_focal.summary)
+            .find("\"unsolved_ranges\":[{\"first\":0,\"last\":59,\"frames\":60,\"first_name\":"
+                  "\"000000.pgm\",\"last_name\":\"000059.pgm\",\"cause\":\"no-reconstruction\"") !=
+        std::string::npos);
   const Outcome given_focal = solve(dir, plane + "/frames", "--focal 280");
   CHECK(given_focal.exit_code == 0);
   CHECK(given_focal.status == "ok");
   CHECK(jsonNumber(given_focal.summary, "solved_frames") == 60);
 }
 
-TEST_CASE("Extreme motion blur gives a defined status", "[solve][degenerate]") {
+TEST_CASE("Extreme motion blur gives a defined status", "[solve][degenerate][slow]") {
   TempDir dir("degenerate");
   const std::string clip = synth(dir, "blur", "--scene handheld --frames 40 --blur 6");
   const Outcome o = solve(dir, clip + "/frames");
   // Either solved or refused with a status: never a crash or NaN (checked in solve()).
-  CHECK((o.status == "ok" || o.status == "no-motion" || o.status == "too-few-features" ||
-         o.status == "initialization-failed"));
-  CHECK(o.exit_code == (o.status == "ok" ? 0 : 1));
+  CHECK((o.status == "ok" || o.status == "partial" || o.status == "no-motion" ||
+         o.status == "too-few-features" || o.status == "initialization-failed"));
+  CHECK(o.exit_code == (o.status == "ok" ? 0 : o.status == "partial" ? 3 : 1));
 }
 
 TEST_CASE("Corrupt JPEG frames in an MJPEG clip are skipped and counted, the rest solved",
@@ -206,4 +249,53 @@ TEST_CASE("A frame size beyond the memory limit is refused up front", "[solve][d
   CHECK(run(binaryPath("tools/solve/epitrack-solve") + " " + path + " --out " + out +
             " --quiet --max-memory 64 2>" + err) == 1);
   CHECK(readWholeFile(err).find("above the limit of 64 MiB") != std::string::npos);
+}
+
+TEST_CASE("A clip whose second half is a blank wall is partial: exit 3, ranges and causes named",
+          "[solve][degenerate]") {
+  // Issue 20: such a clip solved about half its frames and said "ok", exit 0.
+  TempDir dir("degenerate");
+  const std::string clip = synth(dir, "wall", "--scene handheld --frames 60");
+  Image<uint8_t> wall(320, 240);
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x) wall.view()(x, y) = 128;
+  std::string error;
+  for (int i = 60; i < 120; ++i)
+    REQUIRE(epitrack::hal::writePgm(frameName(clip + "/frames", i), wall.view(), error));
+  const Outcome o = solve(dir, clip + "/frames",
+                          "--focal 280" + epitrack::test::liveFeatureBudgetOption(), false);
+  INFO("stderr: " << o.err);
+  CHECK(o.exit_code == 3);
+  CHECK(o.status == "partial");
+  CHECK(jsonNumber(o.summary, "frames") == 120);
+  // The tracker carries some tracks a few frames onto the wall (measured: 72, 61, 50 features in
+  // frames 60-62, which still get a pose), hence a few frames more than 60.
+  const double solved = jsonNumber(o.summary, "solved_frames");
+  CHECK(solved >= 55);
+  CHECK(solved <= 65);
+  // summary.json: one solved run from frame 0, then the wall, unsolved because the tracks were
+  // lost, up to the last frame.
+  const std::string summary = compact(o.summary);
+  const std::string solved_run =
+      "\"solved_ranges\":[{\"first\":0,\"last\":" + std::to_string(static_cast<int>(solved) - 1) +
+      ",";
+  CHECK(summary.find(solved_run) != std::string::npos);
+  const std::string unsolved_run =
+      "\"unsolved_ranges\":[{\"first\":" + std::to_string(static_cast<int>(solved)) +
+      ",\"last\":119,\"frames\":" + std::to_string(120 - static_cast<int>(solved)) + ",";
+  const std::size_t unsolved_at = summary.find(unsolved_run);
+  REQUIRE(unsolved_at != std::string::npos);
+  CHECK(summary.find("\"last_name\":\"000119.pgm\",\"cause\":\"tracks-lost\"", unsolved_at) !=
+        std::string::npos);
+  // stderr names the unsolved range and its cause.
+  CHECK(o.err.find("epitrack-solve: partial: ") != std::string::npos);
+  CHECK(o.err.find("-119 (tracks lost") != std::string::npos);
+  // The report's per-frame plots shade the gap (in both plots) and the summary table names it.
+  std::size_t gaps = 0;
+  for (auto at = o.report.find("class=\"gap\""); at != std::string::npos;
+       at = o.report.find("class=\"gap\"", at + 1))
+    ++gaps;
+  CHECK(gaps >= 2);
+  CHECK(o.report.find("data-last=\"119\" data-cause=\"tracks-lost\"") != std::string::npos);
+  CHECK(o.report.find("data-key=\"unsolved_ranges\"") != std::string::npos);
 }

@@ -45,7 +45,7 @@ RealSolve solveAndScore(const TempDir& dir, const std::string& frames,
 
 }  // namespace
 
-TEST_CASE("Real solve: KITTI seq06 excerpt, given intrinsics", "[solve][real]") {
+TEST_CASE("Real solve: KITTI seq06 excerpt, given intrinsics", "[solve][real][slow]") {
   // Issue 6: every frame, ATE <= 0.1 %. Stop 15: 51/51, 0.033 % (0.22 % before the robust cut).
   if (!haveSharedSequence("kitti_seq06_excerpt")) return;
   const std::string d = sharedDataDir() + "/kitti_seq06_excerpt";
@@ -57,7 +57,7 @@ TEST_CASE("Real solve: KITTI seq06 excerpt, given intrinsics", "[solve][real]") 
   CHECK(r.m.ate_rmse_rel <= 1e-3);
 }
 
-TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real]") {
+TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real][slow]") {
   // Issue 6 asks ATE <= 0.1 %; reached: 51/51 at 1.15 % (stop 17, 600 features; 1.35 % with
   // 300), a scale drift along the turn. The target is not reachable with the given focal: COLMAP's
   // own bundle adjustment started at the ground-truth poses, K fixed, converges to 0.69 % on its
@@ -74,7 +74,7 @@ TEST_CASE("Real solve: KITTI highway excerpt, given intrinsics", "[solve][real]"
 }
 
 TEST_CASE("Real solve: Middlebury templeRing views 12-30, given and self-calibrated",
-          "[solve][real]") {
+          "[solve][real][slow]") {
   // Issue 6 asks <= 0.1 % and a self-calibrated focal within 0.5 %. Reached (stop 17, 600
   // features): given intrinsics 19/19 at 0.083 % (0.130 % with 300 features); self-calibrated,
   // the ring is critical for F (optical axes meet) and the focal profile and the final adjustment

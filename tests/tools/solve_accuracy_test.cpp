@@ -51,7 +51,7 @@ Solved solve(const TempDir& dir, const std::string& clip, const std::string& nam
 }  // namespace
 
 TEST_CASE("Solve accuracy: the rendered 340-frame orbit, known and self-calibrated focal",
-          "[solve][accuracy]") {
+          "[solve][accuracy][slow]") {
   // Issue 6: every frame, ATE <= 0.01 %, rotation <= 0.03 deg, reprojection <= 0.2 px with K
   // known; the focal within 0.1 % and ATE <= 0.01 % with it unknown. Measured (stop 15): known K
   // 0.0040 % / 0.0126 deg / 0.079 px; self-calibrated focal 0.005 % off, ATE 0.0045 %.
@@ -74,7 +74,7 @@ TEST_CASE("Solve accuracy: the rendered 340-frame orbit, known and self-calibrat
   CHECK(u.m.ate_rmse_rel <= 1e-4);
 }
 
-TEST_CASE("Solve accuracy: handheld with the focal unknown", "[solve][accuracy]") {
+TEST_CASE("Solve accuracy: handheld with the focal unknown", "[solve][accuracy][slow]") {
   // Issue 6: focal within 0.5 %, ATE <= 0.05 %. Measured (stop 15, 200 frames): focal 0.009 %
   // off, ATE 0.024 %.
   TempDir dir("acc-hh");
@@ -88,7 +88,7 @@ TEST_CASE("Solve accuracy: handheld with the focal unknown", "[solve][accuracy]"
 }
 
 TEST_CASE("Solve accuracy: noise sigma 2 with motion blur, and radial distortion",
-          "[solve][accuracy]") {
+          "[solve][accuracy][slow]") {
   // Issue 6: noise 2 + blur with K known: ATE <= 0.1 %, rotation <= 0.1 deg. Measured (stop 15,
   // blur 0.5): 0.0041 % / 0.020 deg. Distortion -0.12, 0.03 solved with --distortion k1k2: k1
   // within 5 % and the undistorted figures; measured k1 -0.1198 (0.15 %), 0.0051 % / 0.004 deg.

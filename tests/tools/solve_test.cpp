@@ -56,7 +56,7 @@ TEST_CASE("epitrack-solve solves a rendered orbit and writes every output", "[so
   CHECK(m.rot_err_deg_mean < 1.0);
 }
 
-TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli]") {
+TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli][slow]") {
   TempDir dir("solve-hh");
   const std::string clip = dir.file("hh");
   REQUIRE(run(binaryPath("tools/synth/epitrack-synth") + " --scene handheld --frames 150 --out " +
@@ -75,7 +75,7 @@ TEST_CASE("epitrack-solve self-calibrates a handheld clip", "[solve][cli]") {
 }
 
 TEST_CASE("epitrack-solve --refine-focal starts from a given focal 3 % off and refines it",
-          "[solve][cli]") {
+          "[solve][cli][slow]") {
   TempDir dir("solve-refine");
   const std::string clip = dir.file("orbit");
   REQUIRE(run(binaryPath("tools/synth/epitrack-synth") +
@@ -100,7 +100,7 @@ TEST_CASE("epitrack-solve --refine-focal starts from a given focal 3 % off and r
   CHECK(m.ate_rmse_rel < 2e-4);
 }
 
-TEST_CASE("epitrack-solve solves a short forward dolly", "[solve][cli]") {
+TEST_CASE("epitrack-solve solves a short forward dolly", "[solve][cli][slow]") {
   // Forward motion: central tracks barely move and the pairs look like homographies; the widest
   // baseline must still initialise (a regression: this clip once ended in "planar-scene").
   TempDir dir("solve-dolly");

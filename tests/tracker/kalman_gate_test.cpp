@@ -133,7 +133,7 @@ const epitrack::test::RenderedClip& handheldClip() {
 }  // namespace
 
 TEST_CASE("The Kalman gate rejects injected outliers within 5 frames (Figure 9)",
-          "[tracker][gate]") {
+          "[tracker][gate][slow]") {
   // The paper's test used very noisy images: the orbit with noise sigma 5; and the hand-held
   // clip, whose shake the constant-velocity model does not predict (the speed-widened gate).
   for (const bool handheld : {false, true}) {

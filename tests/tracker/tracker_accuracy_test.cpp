@@ -24,7 +24,8 @@ void print(const char* name, const epitrack::test::TrackAccuracy& a) {
 
 }  // namespace
 
-TEST_CASE("Tracking the noise-free 704x576 orbit meets the accuracy targets", "[tracker][orbit]") {
+TEST_CASE("Tracking the noise-free 704x576 orbit meets the accuracy targets",
+          "[tracker][orbit][slow]") {
   const auto& clip = orbitClip();
   const FeatureTrackerOptions options;
   const auto a = measureTracker(clip, options);
@@ -41,7 +42,7 @@ TEST_CASE("Tracking the noise-free 704x576 orbit meets the accuracy targets", "[
 }
 
 TEST_CASE("The whole-window option set (the device's) meets the accuracy targets too",
-          "[tracker][orbit]") {
+          "[tracker][orbit][slow]") {
   const auto& clip = orbitClip();
   FeatureTrackerOptions options;
   options.wholeWindow();
@@ -57,7 +58,7 @@ TEST_CASE("The whole-window option set (the device's) meets the accuracy targets
 }
 
 TEST_CASE("Tracking the orbit with noise sigma 5 keeps the median error under 0.3 px",
-          "[tracker][orbit][noise]") {
+          "[tracker][orbit][noise][slow]") {
   // 150 frames are enough for the statistics (about 35000 observations).
   const auto& clip = epitrack::test::noisyOrbitPrefix(150, 5.0);
   FeatureTrackerOptions defaults;

@@ -140,6 +140,33 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("skipped_frames", rec.skipped_frames);
   j.field("solved_frames", solved);
   j.field("keyframes", keyframes);
+  if (!rec.frame_ranges.empty()) {
+    // The frames named as the exports name them when their file names are known.
+    const auto name = [&](int64_t f) -> const std::string* {
+      return f >= 0 && static_cast<std::size_t>(f) < rec.frame_names.size()
+                 ? &rec.frame_names[static_cast<std::size_t>(f)]
+                 : nullptr;
+    };
+    for (const bool solved_runs : {true, false}) {
+      j.key(solved_runs ? "solved_ranges" : "unsolved_ranges");
+      j.beginArray();
+      for (const FrameRangeEntry& r : rec.frame_ranges) {
+        if (r.solved != solved_runs) continue;
+        j.beginObject();
+        j.field("first", r.first);
+        j.field("last", r.last);
+        j.field("frames", r.last - r.first + 1);
+        if (const std::string* n = name(r.first)) j.field("first_name", *n);
+        if (const std::string* n = name(r.last)) j.field("last_name", *n);
+        if (!r.solved) {
+          j.field("cause", r.cause);
+          j.field("reason", r.reason);
+        }
+        j.endObject();
+      }
+      j.endArray();
+    }
+  }
   j.field("focal_px", k.fx);
   j.field("focal_source", rec.focal_source);
   j.field("focal_observable", rec.focal_observable);
@@ -153,6 +180,18 @@ std::string formatSummaryJson(const Reconstruction& rec,
   j.field("median_reproj_px", median_px);
   j.field("points", finite_points);
   j.field("observations", static_cast<int64_t>(rec.observations.size()));
+  int64_t outliers = 0;
+  for (const PointObservation& o : rec.observations) outliers += o.outlier ? 1 : 0;
+  j.field("outlier_observations", outliers);
+  // The COLMAP model's own counts (colmap model_analyzer prints the same numbers).
+  const ColmapCounts colmap = colmapCounts(rec);
+  j.key("colmap");
+  j.beginObject();
+  j.field("images", colmap.images);
+  j.field("points", colmap.points);
+  j.field("observations", colmap.observations);
+  j.field("mean_error_px", colmap.mean_error_px);
+  j.endObject();
   j.key("seconds");
   j.beginObject();
   for (const auto& [stage, secs] : rec.seconds.stages) j.field(stage, secs);

@@ -42,7 +42,9 @@ std::string num(double v) {
 }
 
 /// The 2D points of each exported image, in the order written on its POINTS2D line, and the
-/// points written to points3D.txt. Kept: observations of finite points in solved frames, one per
+/// points written to points3D.txt. Kept: observations that are not outliers (so that COLMAP's own
+/// adjustment sees exactly the observations behind the ERROR column and summary.json's means)
+/// of finite points in solved frames, one per
 /// (frame, point) pair (the first), of points seen in at least two exported images: COLMAP's
 /// bundle adjuster asserts tracks of length >= 2. Shared by images.txt and points3D.txt so that
 /// POINT2D_IDX references agree.
@@ -65,7 +67,7 @@ ColmapTracks buildTracks(const Reconstruction& rec) {
   std::vector<const PointObservation*> kept;
   std::set<std::pair<int64_t, int64_t>> seen;  // (frame, point)
   for (const PointObservation& o : rec.observations) {
-    if (solved_frames.count(o.frame) == 0) continue;
+    if (o.outlier || solved_frames.count(o.frame) == 0) continue;
     const auto len = track_length.find(o.point_id);
     if (len == track_length.end() || !std::isfinite(o.x) || !std::isfinite(o.y)) continue;
     if (!seen.emplace(o.frame, o.point_id).second) continue;
@@ -86,7 +88,27 @@ ColmapTracks buildTracks(const Reconstruction& rec) {
   return t;
 }
 
+/// The ERROR column: the point's mean reprojection error over its inlier observations, 0 when
+/// unknown.
+double colmapError(const ScenePoint& p) { return std::isfinite(p.reproj_px) ? p.reproj_px : 0.0; }
+
 }  // namespace
+
+ColmapCounts colmapCounts(const Reconstruction& rec) {
+  const ColmapTracks tracks = buildTracks(rec);
+  ColmapCounts n;
+  for (const SolvedCamera& c : rec.cameras) n.images += usableCamera(c) ? 1 : 0;
+  std::unordered_set<int64_t> listed;
+  for (const ScenePoint& p : rec.points) {
+    const auto it = tracks.per_point.find(p.id);
+    if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
+    n.points += 1;
+    n.observations += static_cast<int64_t>(it->second.size());
+    n.mean_error_px += colmapError(p);
+  }
+  if (n.points > 0) n.mean_error_px /= static_cast<double>(n.points);
+  return n;
+}
 
 std::string formatColmapCameras(const Reconstruction& rec) {
   const CameraIntrinsics& k = rec.intrinsics;
@@ -188,7 +210,7 @@ std::string formatColmapPoints3D(const Reconstruction& rec) {
   for (const ScenePoint& p : rec.points) {
     const auto it = tracks.per_point.find(p.id);
     if (it == tracks.per_point.end() || !p.X.allFinite() || !listed.insert(p.id).second) continue;
-    const double err = std::isfinite(p.reproj_px) ? p.reproj_px : 0.0;
+    const double err = colmapError(p);
     std::snprintf(buf, sizeof(buf), "%lld %.12g %.12g %.12g %u %u %u %.6g",
                   static_cast<long long>(p.id), p.X.x(), p.X.y(), p.X.z(),
                   static_cast<unsigned>(p.gray), static_cast<unsigned>(p.gray),

@@ -41,12 +41,43 @@ std::string formatColmapCameras(const Reconstruction& rec);
 std::string formatColmapImages(const Reconstruction& rec, const ExportOptions& options);
 std::string formatColmapPoints3D(const Reconstruction& rec);
 
+/// What the COLMAP model holds (what `colmap model_analyzer` reports): registered images, points
+/// (tracks of at least two images) and observations (the sum of the track lengths).
+struct ColmapCounts {
+  int64_t images = 0;
+  int64_t points = 0;
+  int64_t observations = 0;
+  double mean_error_px = 0.0;  ///< mean of the points' ERROR column ("Mean reprojection error")
+};
+ColmapCounts colmapCounts(const Reconstruction& rec);
+
 /// blender_camera.py: run in Blender (`blender --python blender_camera.py` or the Text Editor).
 std::string formatBlenderScript(const Reconstruction& rec, const ExportOptions& options);
 
 /// camera.chan (Nuke): `frame tx ty tz rx ry rz vfov`, Nuke's Y-up world and camera looking down
 /// -Z, rotations in degrees for Nuke's default order ZXY (R = Ry * Rx * Rz), vfov in degrees.
+/// The file cannot carry the principal point, fx (with fx != fy), the distortion, the frame rate
+/// or the plate: camera.nk does, but the distortion.
 std::string formatNukeChan(const Reconstruction& rec, const ExportOptions& options);
+
+/// Nuke's lens for our intrinsics with a horizontal aperture (film back width) of `haperture_mm`:
+/// Nuke projects x_ndc = 2 focal / haperture * X / -Z + win_translate_u, y_ndc likewise with
+/// win_translate_v, in units of half the image width for both; pixels from the bottom-left corner:
+/// x = (x_ndc + 1) W / 2, y = y_ndc W pixel_aspect / 2 + H / 2.
+struct NukeLens {
+  double focal_mm = 0.0;
+  double haperture_mm = 0.0;
+  double vaperture_mm = 0.0;
+  double win_translate_u = 0.0;
+  double win_translate_v = 0.0;
+  double pixel_aspect = 1.0;  ///< the format's: pixel width / height = fy / fx
+};
+NukeLens nukeLens(const CameraIntrinsics& k, double haperture_mm);
+
+/// camera.nk: a Nuke script with the Root frame range, fps and format, a Read node for the plate
+/// (the input frames as a numbered sequence, or the video) and a Camera2 node keyed like
+/// camera.chan (rot_order ZXY) with focal, haperture, vaperture and win_translate from nukeLens.
+std::string formatNukeScript(const Reconstruction& rec, const ExportOptions& options);
 
 /// The files writeAllOutputs() writes besides summary.json, relative to the directory, in the
 /// order it writes them.
@@ -56,8 +87,8 @@ const std::vector<std::string>& exportFileNames();
 bool writeSummaryJson(const Reconstruction& rec, const std::string& dir, std::string& error);
 
 /// Writes cameras.tum, intrinsics.txt, points.ply, summary.json, colmap/{cameras,images,
-/// points3D}.txt, blender_camera.py and camera.chan into `dir` (created if missing), then
-/// summary.json with `rec.files` plus these names as its "files". Returns false with a message
+/// points3D}.txt, blender_camera.py, camera.chan and camera.nk into `dir` (created if missing),
+/// then summary.json with `rec.files` plus these names as its "files". Returns false with a message
 /// naming the file on the first failure.
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir, std::string& error);
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir,

@@ -56,6 +56,9 @@ struct PointObservation {
   double y = 0.0;
   double residual_px =
       std::numeric_limits<double>::quiet_NaN();  ///< reprojection error, NaN: unknown
+  /// Left out of the model as an outlier (computeReprojectionErrors: residual above the outlier
+  /// threshold, or the point behind the camera): not in any mean, count or COLMAP track.
+  bool outlier = false;
 };
 
 /// One pairwise focal estimate of the self-calibration (for the report).
@@ -73,6 +76,16 @@ struct FocalProfileEntry {
   bool refined = false;
   double median_reproj_px = 0.0;
   int solved_frames = 0;
+};
+
+/// A run of consecutive frames, all solved or all unsolved for one cause (summary.json
+/// "solved_ranges" and "unsolved_ranges", the report's gaps).
+struct FrameRangeEntry {
+  int64_t first = 0;
+  int64_t last = 0;
+  bool solved = false;
+  std::string cause;   ///< unsolved: a short name ("tracks-lost", "too-little-parallax", ...)
+  std::string reason;  ///< unsolved: what the cause means, in a few words
 };
 
 /// Wall time per solver stage, in the order they ran, plus the total.
@@ -98,8 +111,10 @@ struct Reconstruction {
   double focal_given_px = 0.0;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
-  std::string status = "ok";       ///< "ok" or the reason the solve failed
-  std::string message;             ///< optional human sentence about the status
+  /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see
+  /// frame_ranges), or the reason the solve failed.
+  std::string status = "ok";
+  std::string message;  ///< optional human sentence about the status
   /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",
   /// "SIGTERM"), the stage it stopped ("tracking", "calibration", ...) and, when the solve itself
   /// had finished, the solver's own status ("ok", "rotation-only", ...; empty otherwise).
@@ -115,6 +130,8 @@ struct Reconstruction {
   std::string focal_fallback;
   std::vector<FocalProfileEntry> focal_profile;
   StageSeconds seconds;
+  /// Solved and unsolved runs of frames in frame order (empty: not known; then not written).
+  std::vector<FrameRangeEntry> frame_ranges;
 
   /// Reprojection statistics. NaN: computed by the summary from the observation residuals, or
   /// failing those from the points' reproj_px.
@@ -129,6 +146,15 @@ struct Reconstruction {
   /// Optional image file names per frame index (basename, e.g. "000012.png"), used by COLMAP's
   /// images.txt; frames beyond the vector are named from the index by ExportOptions.
   std::vector<std::string> frame_names;
+  /// Absolute directory holding the frame_names files ("" when the input was not a directory of
+  /// images): the plate of the Blender and Nuke scripts.
+  std::string frames_dir;
+  /// Absolute path of a video INPUT (MJPEG AVI, Y4M; "" otherwise): the plate when there are no
+  /// frame files.
+  std::string input_movie;
+  /// Nominal frame rate of the clip (frames per second, as augmented.avi is written); 0: unknown,
+  /// then the median timestamp interval when Reconstruction::has_timestamps.
+  double fps = 0.0;
 };
 
 /// Settings of the exports that are not part of the solve.

@@ -37,15 +37,18 @@ void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
   all.reserve(rec.observations.size());
   for (PointObservation& o : rec.observations) {
     o.residual_px = kNaN;
+    o.outlier = false;
     const auto cam = camera_of_frame.find(o.frame);
     const auto pt = point_of_id.find(o.point_id);
     if (cam == camera_of_frame.end() || pt == point_of_id.end()) continue;
     Eigen::Vector2d pixel;
     if (!projectPoint(rec.intrinsics, rec.cameras[cam->second], rec.points[pt->second].X, pixel)) {
+      o.outlier = true;  // behind the camera: no residual, and no place in a track
       continue;
     }
     o.residual_px = (pixel - Eigen::Vector2d(o.x, o.y)).norm();
     if (!std::isfinite(o.residual_px) || (outlier_px > 0.0 && o.residual_px > outlier_px)) {
+      o.outlier = true;
       continue;
     }
     camera_sum[cam->second] += o.residual_px;

@@ -18,7 +18,8 @@ bool projectPoint(const CameraIntrinsics& k, const SolvedCamera& camera, const E
 /// per solved camera (SolvedCamera::mean_reproj_px, inliers = observations counted), the mean per
 /// point (ScenePoint::reproj_px, observations = count) and the overall mean and median
 /// (Reconstruction::mean_reproj_px / median_reproj_px). Observations whose residual exceeds
-/// `outlier_px` (> 0) are left out of every mean and count, their residual still recorded.
+/// `outlier_px` (> 0), or whose point is behind the camera, are marked PointObservation::outlier
+/// and left out of every mean and count and of the COLMAP tracks, their residual still recorded.
 void computeReprojectionErrors(Reconstruction& rec, double outlier_px = 0.0);
 
 }  // namespace epitrack::io

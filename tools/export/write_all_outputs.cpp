@@ -13,8 +13,9 @@ std::string withSlash(const std::string& dir) {
 
 const std::vector<std::string>& exportFileNames() {
   static const std::vector<std::string> names = {
-      "cameras.tum",       "intrinsics.txt",      "points.ply",        "colmap/cameras.txt",
-      "colmap/images.txt", "colmap/points3D.txt", "blender_camera.py", "camera.chan"};
+      "cameras.tum",        "intrinsics.txt",    "points.ply",
+      "colmap/cameras.txt", "colmap/images.txt", "colmap/points3D.txt",
+      "blender_camera.py",  "camera.chan",       "camera.nk"};
   return names;
 }
 
@@ -39,7 +40,8 @@ bool writeAllOutputs(const Reconstruction& rec, const std::string& dir,
       hal::writeTextAtomic(base + "colmap/images.txt", formatColmapImages(rec, options), error) &&
       hal::writeTextAtomic(base + "colmap/points3D.txt", formatColmapPoints3D(rec), error) &&
       hal::writeTextAtomic(base + "blender_camera.py", formatBlenderScript(rec, options), error) &&
-      hal::writeTextAtomic(base + "camera.chan", formatNukeChan(rec, options), error);
+      hal::writeTextAtomic(base + "camera.chan", formatNukeChan(rec, options), error) &&
+      hal::writeTextAtomic(base + "camera.nk", formatNukeScript(rec, options), error);
   if (!written) return false;
   // Last, so that a complete summary means a complete output directory.
   return hal::writeTextAtomic(base + "summary.json", formatSummaryJson(rec, exportFileNames()),

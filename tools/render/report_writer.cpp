@@ -166,6 +166,23 @@ class Plot {
     return s;
   }
 
+  /// Shaded bands over the unsolved frame ranges (half a frame either side, so a single frame
+  /// shows), each with its range and cause in data attributes and a tooltip.
+  [[nodiscard]] std::string gaps(const std::vector<io::FrameRangeEntry>& ranges) const {
+    std::string s = "<g class=\"gaps\">";
+    for (const auto& r : ranges) {
+      if (r.solved) continue;
+      const double a = std::max(sx(static_cast<double>(r.first) - 0.5), kLeft);
+      const double b = std::min(sx(static_cast<double>(r.last) + 0.5), kWidth - kRight);
+      s += "<rect class=\"gap\" data-first=\"" + std::to_string(r.first) + "\" data-last=\"" +
+           std::to_string(r.last) + "\" data-cause=\"" + escapeHtml(r.cause) + "\" x=\"" + px(a) +
+           "\" y=\"" + px(kTop) + "\" width=\"" + px(std::max(b - a, 0.8)) + "\" height=\"" +
+           px(kHeight - kTop - kBottom) + "\"><title>frames " + std::to_string(r.first) + "-" +
+           std::to_string(r.last) + " unsolved: " + escapeHtml(r.reason) + "</title></rect>";
+    }
+    return s + "</g>\n";
+  }
+
   static std::string legend(const std::vector<std::pair<std::string, std::string>>& entries) {
     std::string s = "<g class=\"legend\">";
     double x = kLeft + 10;
@@ -249,6 +266,15 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
   if (!rec.message.empty()) h += row("message", "message", rec.message);
   h += row("frames", "frames", std::to_string(rec.frames));
   h += row("solved_frames", "solved frames", std::to_string(s.solved));
+  std::string unsolved;
+  for (const auto& r : rec.frame_ranges) {
+    if (r.solved) continue;
+    if (!unsolved.empty()) unsolved += "; ";
+    unsolved += std::to_string(r.first) +
+                (r.last > r.first ? "-" + std::to_string(r.last) : std::string()) + " (" +
+                r.reason + ")";
+  }
+  if (!unsolved.empty()) h += row("unsolved_ranges", "unsolved frames", unsolved);
   h += row("keyframes", "keyframes", std::to_string(s.keyframes));
   h += row("focal_px", "focal (px)", fmt(3, k.fx));
   h += row("focal_source", "focal source", rec.focal_source);
@@ -298,6 +324,7 @@ std::string perFrameSection(const io::Reconstruction& rec, bool reproj) {
   const Plot plot(0.0, static_cast<double>(n - 1), 0.0, std::isfinite(top) ? top : 1.0);
   if (reproj) {
     std::string svg = plot.begin("plot-reprojection", "frame", "mean reprojection error (px)");
+    svg += plot.gaps(rec.frame_ranges);
     svg += plot.series("reproj_px", "#c0392b", a);
     int unsolved = 0;
     for (std::size_t i = 0; i < n; ++i) unsolved += std::isfinite(a[i]) ? 0 : 1;
@@ -307,6 +334,7 @@ std::string perFrameSection(const io::Reconstruction& rec, bool reproj) {
                       std::to_string(unsolved) + " frame(s) without a solved camera.");
   }
   std::string svg = plot.begin("plot-features", "frame", "features");
+  svg += plot.gaps(rec.frame_ranges);
   svg += plot.series("features", "#2471a3", a);
   svg += plot.series("inliers", "#27ae60", b);
   svg += Plot::legend({{"tracked features", "#2471a3"}, {"used for the pose", "#27ae60"}});
@@ -521,6 +549,7 @@ figure { margin: 0; } figcaption { color: #555; font-size: 0.9em; margin-top: 4p
 svg.plot { width: 100%; max-width: 560px; height: auto; background: #fff; }
 svg.square { max-width: 520px; }
 svg .grid { stroke: #eee; } svg .frame { fill: none; stroke: #999; }
+svg .gap { fill: #f5b7b1; fill-opacity: 0.45; stroke: none; }
 svg .tick { font-size: 11px; fill: #555; } svg .axis { font-size: 12px; fill: #333; }
 svg .chosen { stroke: #c0392b; stroke-width: 1.5; stroke-dasharray: 6 4; }
 svg .coherent { fill: #27ae60; } svg .outlier { fill: #e67e22; }

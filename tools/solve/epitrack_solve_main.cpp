@@ -38,14 +38,15 @@ int main(int argc, char** argv) {
       "epitrack-solve", "INPUT --out DIR [options]",
       "Tracks INPUT, self-calibrates the focal length (unless given), reconstructs the camera\n"
       "path and a point cloud, and writes DIR/cameras.tum, intrinsics.txt, points.ply,\n"
-      "summary.json, report.html, colmap/, blender_camera.py, camera.chan and, with --render\n"
-      "or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
+      "summary.json, report.html, colmap/, blender_camera.py, camera.chan, camera.nk and, with\n"
+      "--render or --overlay, the augmented frames DIR/augmented/*.jpg and DIR/augmented.avi.\n"
       "INPUT: a frame directory, .y4m (or - for Y4M on stdin), .mjpeg, v4l2:/dev/videoN.\n"
       "Ctrl-C (SIGINT) or SIGTERM stops at the next consistent point: summary.json then says\n"
       "\"interrupted\" and lists the outputs written; a second Ctrl-C kills at once.\n"
-      "Exit: 0 solved (or a tripod solve), 1 the solve failed (summary.json says why), 2 bad\n"
-      "command line or unusable INPUT/--intrinsics/--mask/--out, 130 (143) stopped by SIGINT\n"
-      "(SIGTERM).");
+      "Exit: 0 solved (at least 90 % of the frames; or a tripod solve), 1 the solve failed\n"
+      "(summary.json says why), 2 bad command line or unusable INPUT/--intrinsics/--mask/--out,\n"
+      "3 partial: outputs written but fewer than 90 % of the frames solved (summary.json's\n"
+      "unsolved_ranges say which and why), 130 (143) stopped by SIGINT (SIGTERM).");
   cl.positional("INPUT", "frames to solve", &o.input);
   cl.text("out", "DIR", "output directory (created)", &o.out_dir);
   cl.require("out");

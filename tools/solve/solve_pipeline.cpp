@@ -20,6 +20,7 @@
 #include "hal/io/tracks_csv.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/common/mask_source.hpp"
+#include "tools/export/clip_input.hpp"
 #include "tools/export/output_writers.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
 #include "tools/export/reprojection_errors.hpp"
@@ -258,6 +259,7 @@ int runSolve(const SolveCommandOptions& o) {
   std::vector<int> features_per_frame;
   bool decision_reported = false;
   std::vector<double> timestamps;
+  std::vector<std::string> frame_paths;  // the file of each readable frame, for the exports
   const bool draw_frames = o.render != "none" || o.overlay == "tracks";
   const bool keep_frames = draw_frames && o.input == "-";  // stdin cannot be re-read
   std::vector<Image<uint8_t>> kept;
@@ -354,6 +356,7 @@ int runSolve(const SolveCommandOptions& o) {
       }
     }
     timestamps.push_back(frame.timestamp_s);
+    frame_paths.emplace_back(frame.path);
     if (keep_frames) {
       kept.emplace_back(width, height);
       copyPixels<uint8_t>(frame.luma, kept.back().view());
@@ -471,6 +474,7 @@ int runSolve(const SolveCommandOptions& o) {
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
   rec.has_timestamps = source->info().real_timestamps;
+  io::describeClipInput(rec, o.input, frame_paths, source->info().fps);
   rec.focal_fallback = solver.focalFallback();
   for (const auto& p : solver.focalProfile())
     rec.focal_profile.push_back(
@@ -479,6 +483,9 @@ int runSolve(const SolveCommandOptions& o) {
     if (!p.observable) continue;
     rec.focal_estimates.push_back({p.frame_a, p.frame_b, p.focal_px, p.coherent});
   }
+  for (const FrameRange& r : frameRanges(solver.frames()))
+    rec.frame_ranges.push_back({r.first, r.last, r.solved, r.solved ? "" : toString(r.cause),
+                                r.solved ? "" : describe(r.cause)});
   for (int f = 0; f < frames; ++f) {
     const auto& fr = solver.frames()[static_cast<std::size_t>(f)];
     io::SolvedCamera c;
@@ -514,7 +521,8 @@ int runSolve(const SolveCommandOptions& o) {
     rec_observation[i] = static_cast<int>(rec.observations.size());
     rec.observations.push_back({ob.frame, tracks.trackId(ob.track), ob.x, ob.y});
   }
-  if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly) {
+  if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||
+      solver.status() == Solver::Status::kPartial) {
     const auto sf = io::applySceneFrame(rec, o.scene);
     (void)sf;
   }
@@ -673,17 +681,24 @@ int runSolve(const SolveCommandOptions& o) {
   char refined_from[64] = "";
   if (rec.focal_given_px > 0.0)
     std::snprintf(refined_from, sizeof(refined_from), ", refined from %.2f", rec.focal_given_px);
+  // No nan in what a user reads: a solve without a reprojected observation has no mean.
+  char reprojection[48] = "no reprojected observation";
+  if (std::isfinite(mean))
+    std::snprintf(reprojection, sizeof(reprojection), "reprojection mean %.3f px", mean);
+  char focal_text[32] = "unknown";
+  if (std::isfinite(solver.focal()) && solver.focal() > 0.0)
+    std::snprintf(focal_text, sizeof(focal_text), "%.2f px", solver.focal());
   char line[512];
   std::snprintf(line, sizeof(line),
-                "%s: %d/%d frames solved, focal %.2f px (%s%s%s%s), %zu points, reprojection "
-                "mean %.3f px, %.2f s; outputs in %s",
-                rec.status.c_str(), solver.solvedFrames(), frames, solver.focal(),
+                "%s: %d/%d frames solved, focal %s (%s%s%s%s), %zu points, %s, %.2f s; outputs "
+                "in %s",
+                rec.status.c_str(), solver.solvedFrames(), frames, focal_text,
                 rec.focal_source.c_str(), refined_from,
                 rec.focal_observable ? "" : ", not observable from F",
                 rec.focal_fallback == "profile"
                     ? ", from the reprojection profile"
                     : (rec.focal_fallback == "profile-flat" ? ", profile flat: a guess" : ""),
-                rec.points.size(), mean, rec.seconds.total, o.out_dir.c_str());
+                rec.points.size(), reprojection, rec.seconds.total, o.out_dir.c_str());
   if (o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   if (!stop_stage.empty()) {
@@ -693,6 +708,12 @@ int runSolve(const SolveCommandOptions& o) {
   if (!input_error.empty()) {
     std::fprintf(stderr, "epitrack-solve: input stopped early: %s\n", input_error.c_str());
     return 1;
+  }
+  if (solver.status() == Solver::Status::kPartial) {
+    // Outputs written, but not of the whole clip: the ranges and their causes are named here and
+    // in summary.json (solved_ranges, unsolved_ranges).
+    std::fprintf(stderr, "epitrack-solve: partial: %s\n", solver.message().c_str());
+    return kExitPartial;
   }
   if (!ok) {
     std::fprintf(stderr, "epitrack-solve: %s\n", solver.message().c_str());

@@ -51,9 +51,14 @@ std::vector<std::string> previousSolveFiles(const std::string& dir);
 /// the peak; the solver's own state is small beside it).
 double estimateSolveMemoryBytes(int width, int height, int max_features, int window, long frames);
 
-/// Runs the whole solve and writes every output. Returns the process exit code: 0 solved (or a
-/// tripod solve), 1 a runtime failure (summary.json says why whenever the clip could be read),
-/// 2 an unusable INPUT, --intrinsics, --mask or --out (one line on stderr, nothing written), or
+/// Exit code of a partial solve: every output written, but at least a tenth of the frames
+/// (views) unsolved (status "partial"; summary.json lists the solved and unsolved ranges).
+inline constexpr int kExitPartial = 3;
+
+/// Runs the whole solve and writes every output. Returns the process exit code: 0 solved (at
+/// least 90 % of the frames; or a tripod solve of as many), 1 a runtime failure (summary.json
+/// says why whenever the clip could be read), 2 an unusable INPUT, --intrinsics, --mask or --out
+/// (one line on stderr, nothing written), 3 (kExitPartial) a partial solve, or
 /// 128 + the signal (130 SIGINT, 143 SIGTERM) when a stop signal ended it early: then
 /// summary.json has status "interrupted" and lists the consistent outputs written (see
 /// tools/common/interrupt.hpp; the caller installs the handler).

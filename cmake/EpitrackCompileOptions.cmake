@@ -38,13 +38,6 @@ if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(arm|ARM)")
   # GCC notes on 32-bit ARM that passing some structs changed in GCC 7.1: nothing here links with
   # code built by GCC 6 or older, and the notes buried the real diagnostics of the armhf build.
   target_compile_options(epitrack_warnings INTERFACE -Wno-psabi)
-  # GCC 12's -Wrestrict misfires on std::string concatenations it inlines ('"x" + std::string'):
-  # in the armhf build, where size_t is 32-bit, it flagged tests that build command lines this way
-  # (an overlap "at offsets 8 and [0, 1073741831]" inside libstdc++'s memcpy). The native build
-  # keeps the warning, and works around its rarer false positives where they appear.
-  if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU" AND CMAKE_CXX_COMPILER_VERSION VERSION_LESS 13)
-    target_compile_options(epitrack_warnings INTERFACE -Wno-restrict)
-  endif()
 endif()
 
 # Sanitizers: a list; incompatible combinations are refused.

@@ -57,12 +57,17 @@ struct LkWindowSums {
 void lkTranslationSumsScalar(const uint8_t* image, std::ptrdiff_t stride, int side,
                              const LkBilinear& w, const int16_t* T, const int16_t* Sx,
                              const int16_t* Sy, int tstride, LkWindowSums& out);
-/// The same with 128-bit integer vectors; the scalar kernel where there are none.
+/// The same with 128-bit integer vectors (SSE2, NEON); the scalar kernel where there are none.
 void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int side,
                              const LkBilinear& w, const int16_t* T, const int16_t* Sx,
                              const int16_t* Sy, int tstride, LkWindowSums& out);
-/// "sse2", "neon" or "scalar": what lkTranslationSumsVector uses on this build.
+/// "sse2", "neon" or "scalar": what lkTranslationSumsVector and lkAffineSums128 use on this
+/// machine.
 const char* lkVectorIsa();
+/// True when this machine runs the NEON kernels: every aarch64; 32-bit ARM (built with GCC for
+/// Linux) where the kernel reports NEON (getauxval(AT_HWCAP), checked once), since Debian's armhf
+/// baseline does not include it; false elsewhere.
+bool lkHaveNeon();
 
 // ---- The affine iteration (PyramidalLk::alignAffine, Baker & Matthews 2004 §3.2) ---------------
 
@@ -116,9 +121,9 @@ struct LkAffineSums {
 void lkAffineSumsScalar(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                         const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                         LkAffineSums& out);
-/// The same with 128-bit vectors (SSE2 / NEON; the scalar kernel where there are none, or for
-/// windows beyond 56): a software gather of the four neighbours per pixel (one contiguous load
-/// per row where the warped row of 8 pixels steps by exactly one pixel).
+/// The same with 128-bit vectors (SSE2 / NEON; the scalar kernel where there are none, see
+/// lkHaveNeon, or for windows beyond 56): a software gather of the four neighbours per pixel (one
+/// contiguous load per row where the warped row of 8 pixels steps by exactly one pixel).
 void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                      const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                      LkAffineSums& out);

@@ -2,35 +2,37 @@
 
 // The few 128-bit integer operations the Lucas-Kanade kernels (algo/flow/lk_kernels.cpp) and the
 // image core (pyramid, Scharr gradients) and the Shi-Tomasi detector need, on SSE2 (every x86-64)
-// and NEON (every aarch64), so that a kernel is written once. Every
+// and NEON (every aarch64; ARMv7 at run time, see below), so that a kernel is written once. Every
 // operation is exact integer arithmetic with a defined result per lane, so a vector kernel gives
-// the same sums as the scalar reference, bit for bit, on both instruction sets.
+// the same sums as the scalar reference, bit for bit, on every instruction set.
 // EPITRACK_LK_SIMD is 1 when one of them is available, else 0 (the scalar kernels only).
+//
+// ARMv7 (armhf): Debian's baseline (armv7-a+fp, VFPv3-D16) does not include NEON, so the baseline
+// build has no vector operations (EPITRACK_LK_SIMD 0). algo/flow/lk_kernels_neon32.cpp defines
+// EPITRACK_SIMD_ARMV7_NEON and includes this header under `#pragma GCC target("fpu=neon")` (and
+// nowhere else: the one file of an armhf build with these operations, all NEON): it
+// gets the integer operations, written with ARMv7 intrinsics only, and its kernels run where the
+// kernel reports NEON (lkHaveNeon). The float operations are aarch64 only: ARMv7 NEON flushes
+// denormals to zero and has no vector square root, so it would not match scalar float code.
 
 #include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <cstring>
 
+#include "algo/flow/simd_isa.hpp"
+
 #if defined(__SSE2__) || defined(_M_X64)
 #include <emmintrin.h>
 #define EPITRACK_LK_SIMD 1
 #define EPITRACK_LK_SIMD_NAME "sse2"
-#elif defined(__ARM_NEON) && defined(__aarch64__)
+#elif (defined(__ARM_NEON) && defined(__aarch64__)) || defined(EPITRACK_SIMD_ARMV7_NEON)
 #include <arm_neon.h>
 #define EPITRACK_LK_SIMD 1
 #define EPITRACK_LK_SIMD_NAME "neon"
 #else
 #define EPITRACK_LK_SIMD 0
 #define EPITRACK_LK_SIMD_NAME "scalar"
-#endif
-
-// EPITRACK_LK_AVX2: x86-64 with GCC or Clang, which compile AVX2 functions (target attribute) into
-// a baseline build; they run only where the processor has AVX2 (checked at run time).
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define EPITRACK_LK_AVX2 1
-#else
-#define EPITRACK_LK_AVX2 0
 #endif
 
 #if EPITRACK_LK_SIMD
@@ -187,9 +189,22 @@ inline I32x4 sll32(I32x4 a) {
   return _mm_slli_epi32(a, kShift);
 }
 
-#else  // NEON (aarch64)
+#else  // NEON: aarch64, or ARMv7 with ARMv7 intrinsics only (where the two differ, both spelled)
 using I16x8 = int16x8_t;
 using I32x4 = int32x4_t;
+
+#if defined(__aarch64__)
+/// The int32 products of lanes 4-7.
+inline int32x4_t mulHighS16(int16x8_t a, int16x8_t b) { return vmull_high_s16(a, b); }
+inline uint32x4_t mulHighU16(uint16x8_t a, uint16x8_t b) { return vmull_high_u16(a, b); }
+#else
+inline int32x4_t mulHighS16(int16x8_t a, int16x8_t b) {
+  return vmull_s16(vget_high_s16(a), vget_high_s16(b));
+}
+inline uint32x4_t mulHighU16(uint16x8_t a, uint16x8_t b) {
+  return vmull_u16(vget_high_u16(a), vget_high_u16(b));
+}
+#endif
 
 inline I16x8 loadWidenU8(const uint8_t* p) {
   uint8_t bytes[8];
@@ -209,17 +224,29 @@ inline I16x8 loadWidenU8Tail(const uint8_t* p, int n) {
   return vreinterpretq_s16_u16(vmovl_u8(vcreate_u8(bits)));
 }
 inline I16x8 loadI16(const int16_t* p) { return vld1q_s16(p); }
+#if defined(__aarch64__)
 inline I16x8 zipLo16(I16x8 a, I16x8 b) { return vzip1q_s16(a, b); }
 inline I16x8 zipHi16(I16x8 a, I16x8 b) { return vzip2q_s16(a, b); }
+#else
+inline I16x8 zipLo16(I16x8 a, I16x8 b) { return vzipq_s16(a, b).val[0]; }
+inline I16x8 zipHi16(I16x8 a, I16x8 b) { return vzipq_s16(a, b).val[1]; }
+#endif
 inline I16x8 pair16(int16_t a, int16_t b) {
   const int16_t v[8] = {a, b, a, b, a, b, a, b};
   return vld1q_s16(v);
 }
 inline I16x8 set16(int16_t a) { return vdupq_n_s16(a); }
 inline I16x8 sub16(I16x8 a, I16x8 b) { return vsubq_s16(a, b); }
-/// As SSE2's pmaddwd: widening products, then adjacent pairs added.
+/// As SSE2's pmaddwd: widening products, then adjacent pairs added (wrapping as pmaddwd does).
 inline I32x4 madd(I16x8 a, I16x8 b) {
-  return vpaddq_s32(vmull_s16(vget_low_s16(a), vget_low_s16(b)), vmull_high_s16(a, b));
+  const int32x4_t lo = vmull_s16(vget_low_s16(a), vget_low_s16(b));
+  const int32x4_t hi = mulHighS16(a, b);
+#if defined(__aarch64__)
+  return vpaddq_s32(lo, hi);
+#else
+  return vcombine_s32(vpadd_s32(vget_low_s32(lo), vget_high_s32(lo)),
+                      vpadd_s32(vget_low_s32(hi), vget_high_s32(hi)));
+#endif
 }
 inline I32x4 zero32() { return vdupq_n_s32(0); }
 inline I32x4 set32(int32_t a) { return vdupq_n_s32(a); }
@@ -229,7 +256,14 @@ inline I32x4 sra32(I32x4 a) {
   return vshrq_n_s32(a, kShift);
 }
 inline I16x8 pack32(I32x4 lo, I32x4 hi) { return vcombine_s16(vqmovn_s32(lo), vqmovn_s32(hi)); }
-inline int64_t sum32(I32x4 a) { return vaddlvq_s32(a); }
+inline int64_t sum32(I32x4 a) {
+#if defined(__aarch64__)
+  return vaddlvq_s32(a);
+#else
+  const int64x2_t pairs = vpaddlq_s32(a);
+  return vgetq_lane_s64(pairs, 0) + vgetq_lane_s64(pairs, 1);
+#endif
+}
 inline void store32(int32_t* p, I32x4 a) { vst1q_s32(p, a); }
 inline I32x4 set32x4(int32_t a0, int32_t a1, int32_t a2, int32_t a3) {
   const int32_t v[4] = {a0, a1, a2, a3};
@@ -251,7 +285,7 @@ inline I16x8 widenLoU8(I16x8 a) {
   return vreinterpretq_s16_u16(vmovl_u8(vget_low_u8(vreinterpretq_u8_s16(a))));
 }
 inline I16x8 widenHiU8(I16x8 a) {
-  return vreinterpretq_s16_u16(vmovl_high_u8(vreinterpretq_u8_s16(a)));
+  return vreinterpretq_s16_u16(vmovl_u8(vget_high_u8(vreinterpretq_u8_s16(a))));
 }
 inline I32x4 sub32(I32x4 a, I32x4 b) { return vsubq_s32(a, b); }
 inline I32x4 bitAnd(I32x4 a, I32x4 b) { return vandq_s32(a, b); }
@@ -278,16 +312,17 @@ inline void storeU8x8(uint8_t* p, I16x8 a) { vst1_u8(p, vqmovun_s16(a)); }
 inline I16x8 mul16(I16x8 a, I16x8 b) { return vmulq_s16(a, b); }
 inline void mulWiden16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
   lo = vmull_s16(vget_low_s16(a), vget_low_s16(b));
-  hi = vmull_high_s16(a, b);
+  hi = mulHighS16(a, b);
 }
 inline I32x4 loadI32(const int32_t* p) { return vld1q_s32(p); }
 inline void mulWidenU16(I16x8 a, I16x8 b, I32x4& lo, I32x4& hi) {
   const uint16x8_t ua = vreinterpretq_u16_s16(a);
   const uint16x8_t ub = vreinterpretq_u16_s16(b);
   lo = vreinterpretq_s32_u32(vmull_u16(vget_low_u16(ua), vget_low_u16(ub)));
-  hi = vreinterpretq_s32_u32(vmull_high_u16(ua, ub));
+  hi = vreinterpretq_s32_u32(mulHighU16(ua, ub));
 }
 
+#if defined(__aarch64__)
 using F32x4 = float32x4_t;
 inline F32x4 toF32(I32x4 a) { return vcvtq_f32_s32(a); }
 inline F32x4 setF32(float a) { return vdupq_n_f32(a); }
@@ -305,6 +340,7 @@ inline int laneBits(uint32x4_t m) {
 inline int maskGeF32(F32x4 a, F32x4 b) { return laneBits(vcgeq_f32(a, b)); }
 inline int maskGtF32(F32x4 a, F32x4 b) { return laneBits(vcgtq_f32(a, b)); }
 inline float maxLaneF32(F32x4 a) { return vmaxvq_f32(a); }
+#endif
 #endif
 
 }  // namespace epitrack::simd

@@ -2,10 +2,11 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
-#include <dirent.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -14,19 +15,41 @@ namespace epitrack::hal {
 
 std::string errnoText(int err) { return std::strerror(err); }
 
+bool regularFileSize(int fd, const std::string& path, std::size_t& size, std::string& error) {
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    error = "cannot query '" + path + "': " + errnoText(errno);
+    return false;
+  }
+  if (!S_ISREG(st.st_mode)) {
+    error = "'" + path + "' is not a regular file";
+    return false;
+  }
+  // off_t is 64-bit everywhere (cmake/EpitrackCompileOptions.cmake), size_t only 32-bit on 32-bit
+  // targets; a buffer or mapping holds at most PTRDIFF_MAX bytes (2 GB there).
+  if (st.st_size < 0 ||
+      static_cast<std::uintmax_t>(st.st_size) >
+          static_cast<std::uintmax_t>(std::numeric_limits<std::ptrdiff_t>::max())) {
+    error = "'" + path + "' is too large for this " + std::to_string(sizeof(void*) * 8) +
+            "-bit build (" + std::to_string(st.st_size) + " bytes)";
+    return false;
+  }
+  size = static_cast<std::size_t>(st.st_size);
+  return true;
+}
+
 bool readFileInto(const std::string& path, std::vector<uint8_t>& bytes, std::string& error) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     error = "cannot open '" + path + "': " + errnoText(errno);
     return false;
   }
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    error = "'" + path + "' is not a regular file";
+  std::size_t size = 0;
+  if (!regularFileSize(fd, path, size, error)) {
     ::close(fd);
     return false;
   }
-  bytes.resize(static_cast<std::size_t>(st.st_size));
+  bytes.resize(size);
   std::size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
@@ -92,20 +115,37 @@ bool hasFrameExtension(const std::string& name) {
 }
 }  // namespace
 
-bool listFrameFiles(const std::string& dir, std::vector<std::string>& paths, std::string& error) {
-  paths.clear();
-  DIR* d = ::opendir(dir.c_str());
-  if (d == nullptr) {
-    error = "cannot open directory '" + dir + "': " + errnoText(errno);
-    return false;
-  }
-  std::vector<std::string> names;
-  while (const dirent* e = ::readdir(d)) {
+bool readFrameNames(DIR* stream, const std::string& dir, std::vector<std::string>& names,
+                    std::string& error) {
+  names.clear();
+  for (;;) {
+    // readdir returns null both at the end and on an error; only errno tells them apart.
+    errno = 0;
+    const dirent* e = ::readdir(stream);
+    if (e == nullptr) {
+      if (errno != 0) {
+        error = "cannot read directory '" + dir + "': " + errnoText(errno);
+        return false;
+      }
+      return true;
+    }
     const std::string name = e->d_name;
     if (name.empty() || name[0] == '.' || !hasFrameExtension(name)) continue;
     names.push_back(name);
   }
-  ::closedir(d);
+}
+
+bool listFrameFiles(const std::string& dir, std::vector<std::string>& paths, std::string& error) {
+  paths.clear();
+  DIR* stream = ::opendir(dir.c_str());
+  if (stream == nullptr) {
+    error = "cannot open directory '" + dir + "': " + errnoText(errno);
+    return false;
+  }
+  std::vector<std::string> names;
+  const bool read = readFrameNames(stream, dir, names, error);
+  ::closedir(stream);
+  if (!read) return false;
   if (names.empty()) {
     error = "directory '" + dir + "' holds no frames (*.jpg, *.jpeg, *.png, *.pgm, *.ppm)";
     return false;

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include <dirent.h>
+
 namespace epitrack::hal {
 
 /// Reads a whole file into `bytes` (resized; capacity is kept, so reading frames of similar size
@@ -19,9 +21,22 @@ bool writeFileAtomic(const std::string& path, const void* data, std::size_t size
 /// Atomic text write, see writeFileAtomic.
 bool writeTextAtomic(const std::string& path, const std::string& text, std::string& error);
 
+/// The size of the regular file open as `fd`. False with a message naming `path` when fstat fails
+/// (its errno), the file is not a regular file, or it is too large for this build's memory
+/// (over PTRDIFF_MAX bytes: 2 GB on 32-bit targets, where size_t is narrower than off_t).
+bool regularFileSize(int fd, const std::string& path, std::size_t& size, std::string& error);
+
 /// Lists the frame files of a directory (*.jpg, *.jpeg, *.png, *.pgm, *.ppm, any case), sorted
-/// by name (byte order). Returns false when the directory cannot be read or holds no frames.
+/// by name (byte order). Returns false with a message saying which when the directory cannot be
+/// opened (its errno: missing, not a directory, permission), cannot be read (readdir's errno), or
+/// holds no frames.
 bool listFrameFiles(const std::string& dir, std::vector<std::string>& paths, std::string& error);
+
+/// The frame file names of an open directory stream, unsorted (listFrameFiles' reading step).
+/// False with readdir's errno in the message (naming `dir`) when reading fails part way: a failure
+/// is never taken for the end of the directory.
+bool readFrameNames(DIR* stream, const std::string& dir, std::vector<std::string>& names,
+                    std::string& error);
 
 /// True when `path` names an existing directory.
 bool isDirectory(const std::string& path);

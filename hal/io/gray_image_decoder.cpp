@@ -54,7 +54,7 @@ bool GrayImageDecoder::decodeInto(const uint8_t* data, std::size_t size, ImageVi
     case ImageFormat::kPnm:
       return decodePnm(data, size, out, error);
     case ImageFormat::kPng:
-      return decodePng(data, size, out, row_scratch_, error);
+      return decodePng(data, size, out, png_scratch_, error);
     case ImageFormat::kJpeg:
       return jpeg_.decodeGray(data, size, out, error);
     case ImageFormat::kUnknown:

@@ -48,10 +48,19 @@ void encodePpm(const uint8_t* rgb, int width, int height, std::ptrdiff_t stride_
 
 // -- PNG (png_codec.cpp, libpng) -----------------------------------------------------------------
 bool readPngHeader(const uint8_t* data, std::size_t size, ImageHeader& header, std::string& error);
+/// What decodePng keeps between calls, so that decoding frames of one size stops allocating.
+struct PngScratch {
+  /// One row of the widest layout (colour), or the whole image when it is interlaced.
+  std::vector<uint8_t> pixels;
+  /// Interlaced images only: the start of each row in `pixels` (libpng's png_bytep array; a
+  /// vector of the pointer type rather than pointers stored in the byte buffer, which would need
+  /// a cast to a more aligned type).
+  std::vector<uint8_t*> rows;
+};
 /// Decodes a PNG (any bit depth, gray/RGB/palette, alpha dropped, 16 bits reduced to 8) into
-/// `out` (the header's size). `row_scratch` is resized to one row of the widest layout.
-bool decodePng(const uint8_t* data, std::size_t size, ImageView<uint8_t> out,
-               std::vector<uint8_t>& row_scratch, std::string& error);
+/// `out` (the header's size), with buffers from `scratch` (resized as needed).
+bool decodePng(const uint8_t* data, std::size_t size, ImageView<uint8_t> out, PngScratch& scratch,
+               std::string& error);
 
 // -- JPEG (jpeg_codec.cpp, libjpeg-turbo's TurboJPEG API) ----------------------------------------
 /// TurboJPEG decompressor created once and reused; JPEG decodes straight to gray (the Y plane).
@@ -119,7 +128,7 @@ class GrayImageDecoder {
  private:
   JpegDecoder jpeg_;
   std::vector<uint8_t> file_bytes_;
-  std::vector<uint8_t> row_scratch_;
+  PngScratch png_scratch_;
   std::string last_path_;
 };
 

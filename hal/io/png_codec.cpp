@@ -5,6 +5,7 @@
 #include <csetjmp>
 #include <cstring>
 #include <string>
+#include <type_traits>
 
 #include "hal/io/image_codec.hpp"
 
@@ -43,7 +44,7 @@ void pngRead(png_structp png, png_bytep out, png_size_t count) {
 
 // Decodes (or only reads the header when out == nullptr). Returns 0 on success.
 int pngDecodeImpl(PngReadContext* ctx, ImageHeader* header, ImageView<uint8_t>* out,
-                  std::vector<uint8_t>* row_scratch) {
+                  PngScratch* scratch) {
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, ctx, pngError, pngWarning);
   if (png == nullptr) {
     std::snprintf(ctx->message, sizeof(ctx->message), "libpng: out of memory");
@@ -98,22 +99,21 @@ int pngDecodeImpl(PngReadContext* ctx, ImageHeader* header, ImageView<uint8_t>* 
   if (channels == 1 && passes == 1) {
     for (png_uint_32 y = 0; y < h; ++y) png_read_row(png, out->row(static_cast<int>(y)), nullptr);
   } else if (passes == 1) {
-    row_scratch->resize(row_bytes);
+    scratch->pixels.resize(row_bytes);
     for (png_uint_32 y = 0; y < h; ++y) {
-      png_read_row(png, row_scratch->data(), nullptr);
-      const uint8_t* s = row_scratch->data();
+      png_read_row(png, scratch->pixels.data(), nullptr);
+      const uint8_t* s = scratch->pixels.data();
       uint8_t* d = out->row(static_cast<int>(y));
       for (png_uint_32 x = 0; x < w; ++x, s += channels)
         d[x] = channels >= 3 ? rgbToLuma(s[0], s[1], s[2]) : s[0];
     }
   } else {
-    // Interlaced: libpng needs the whole image; keep it in the scratch buffer, the row pointers
-    // first (the buffer start is aligned for them; after the pixels they could be misaligned).
-    const std::size_t pointer_bytes = sizeof(png_bytep) * h;
-    row_scratch->resize(pointer_bytes + row_bytes * h);
-    auto* rows = reinterpret_cast<png_bytep*>(row_scratch->data());  // NOLINT
-    uint8_t* pixels = row_scratch->data() + pointer_bytes;
-    for (png_uint_32 y = 0; y < h; ++y) rows[y] = pixels + row_bytes * y;
+    // Interlaced: libpng needs the whole image and an array of pointers to its rows.
+    scratch->pixels.resize(row_bytes * h);
+    scratch->rows.resize(h);
+    static_assert(std::is_same_v<png_bytep, uint8_t*>, "PngScratch::rows is libpng's row array");
+    png_bytep* rows = scratch->rows.data();
+    for (png_uint_32 y = 0; y < h; ++y) rows[y] = scratch->pixels.data() + row_bytes * y;
     png_read_image(png, rows);
     for (png_uint_32 y = 0; y < h; ++y) {
       const uint8_t* s = rows[y];
@@ -138,11 +138,11 @@ bool readPngHeader(const uint8_t* data, std::size_t size, ImageHeader& header, s
   return true;
 }
 
-bool decodePng(const uint8_t* data, std::size_t size, ImageView<uint8_t> out,
-               std::vector<uint8_t>& row_scratch, std::string& error) {
+bool decodePng(const uint8_t* data, std::size_t size, ImageView<uint8_t> out, PngScratch& scratch,
+               std::string& error) {
   PngReadContext ctx{data, size, 0, {}};
   ImageHeader header;
-  if (pngDecodeImpl(&ctx, &header, &out, &row_scratch) != 0) {
+  if (pngDecodeImpl(&ctx, &header, &out, &scratch) != 0) {
     error = std::string("bad PNG: ") + ctx.message;
     return false;
   }

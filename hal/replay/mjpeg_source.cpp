@@ -4,7 +4,6 @@
 
 #include <fcntl.h>
 #include <sys/mman.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include "hal/io/file_util.hpp"
@@ -18,18 +17,17 @@ MjpegSource::MjpegSource(const std::string& path, const SourceOptions& options) 
     error_ = "cannot open '" + path + "': " + errnoText(errno);
     return;
   }
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    error_ = "'" + path + "' is not a regular file";
+  std::size_t file_size = 0;
+  if (!regularFileSize(fd, path, file_size, error_)) {
     ::close(fd);
     return;
   }
-  if (st.st_size == 0) {
+  if (file_size == 0) {
     error_ = "'" + path + "': empty file, no frames";
     ::close(fd);
     return;
   }
-  void* map = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+  void* map = ::mmap(nullptr, file_size, PROT_READ, MAP_PRIVATE, fd, 0);
   const int map_errno = errno;
   ::close(fd);
   if (map == MAP_FAILED) {
@@ -37,7 +35,7 @@ MjpegSource::MjpegSource(const std::string& path, const SourceOptions& options) 
     return;
   }
   data_ = static_cast<const uint8_t*>(map);
-  size_ = static_cast<std::size_t>(st.st_size);
+  size_ = file_size;
   ::madvise(map, size_, MADV_SEQUENTIAL);
   if (size_ < 3 || data_[0] != 0xFF || data_[1] != 0xD8 || data_[2] != 0xFF) {
     error_ = "'" + path + "': not an MJPEG file (no JPEG signature at byte 0)";

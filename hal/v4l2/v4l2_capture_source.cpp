@@ -219,7 +219,7 @@ bool V4l2CaptureSource::negotiateFormat() {
   int width = options_.width;
   int height = options_.height;
   if (width == 0) {
-    long best_cost = -1;
+    int64_t best_cost = -1;  // pixel counts: a device may offer sizes whose product passes 2^31
     for (uint32_t i = 0; i < kMaxFrameSizes; ++i) {
       v4l2_frmsizeenum size{};
       size.index = i;
@@ -241,7 +241,8 @@ bool V4l2CaptureSource::negotiateFormat() {
         w = fit(kDefaultWidth, s.min_width, s.max_width, s.step_width);
         h = fit(kDefaultHeight, s.min_height, s.max_height, s.step_height);
       }
-      const long cost = std::labs(static_cast<long>(w) * h - long{kDefaultWidth} * kDefaultHeight);
+      const int64_t cost =
+          std::llabs(static_cast<int64_t>(w) * h - int64_t{kDefaultWidth} * kDefaultHeight);
       if (best_cost < 0 || cost < best_cost) {
         best_cost = cost;
         width = w;
@@ -375,6 +376,11 @@ bool V4l2CaptureSource::startStreaming() {
     buf.index = i;
     if (const int rc = xioctl(VIDIOC_QUERYBUF, &buf); rc < 0) {
       error_ = "'" + dev + "': VIDIOC_QUERYBUF " + std::to_string(i) + ": " + errnoText(-rc);
+      // 32-bit builds have 64-bit time (cmake/EpitrackCompileOptions.cmake), so their
+      // v4l2_buffer is the time64 layout, which kernels before 5.6 do not know (ENOTTY).
+      if (rc == -ENOTTY && sizeof(void*) == 4) {
+        error_ += " (this 32-bit build passes 64-bit timestamps, which need Linux 5.6 or later)";
+      }
       return false;
     }
     if (buf.length < needed) {

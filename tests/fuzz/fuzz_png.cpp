@@ -51,7 +51,7 @@ void decodeAndCheck(const uint8_t* data, std::size_t size) {
   FUZZ_CHECK(header.channels == 1 || header.channels == 3);
   if (!epitrack::fuzz::smallEnough(header.width, header.height)) return;
 
-  static std::vector<uint8_t> scratch;  // reused across calls, as GrayImageDecoder does
+  static hal::PngScratch scratch;  // reused across calls, as GrayImageDecoder does
   Image<uint8_t> direct(header.width, header.height);
   const bool decoded = hal::decodePng(data, size, direct.view(), scratch, error);
   if (!decoded) FUZZ_CHECK(!error.empty());

@@ -71,7 +71,7 @@ TEST_CASE("A PNG chunk claiming 1 GB does not make the reader allocate it", "[ha
   std::string error;
   hal::readPngHeader(png.data(), png.size(), header, error);
   Image<uint8_t> image(5, 3);
-  std::vector<uint8_t> scratch;
+  hal::PngScratch scratch;
   CHECK_FALSE(hal::decodePng(png.data(), png.size(), image.view(), scratch, error));
   CHECK(error.find("bad PNG") == 0);
   CHECK(peakRssKb() - before_kb < 256 * 1024);  // far below the 1 GB claimed

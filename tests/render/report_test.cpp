@@ -313,7 +313,7 @@ TEST_CASE("report renders in headless Chromium", "[render][report][browser]") {
   CHECK(header.height == 3000);
   // Not a blank page: plenty of non-white pixels.
   epitrack::Image<uint8_t> gray(header.width, header.height);
-  std::vector<uint8_t> scratch;
+  epitrack::hal::PngScratch scratch;
   REQUIRE(epitrack::hal::decodePng(png.data(), png.size(), gray.view(), scratch, error));
   int dark = 0;
   for (int y = 0; y < gray.height(); ++y)

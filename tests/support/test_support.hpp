@@ -24,7 +24,11 @@ namespace epitrack::test {
 /// the command's behaviour rather than its accuracy, and for comparisons with the device: about
 /// half the solve's time, under ASan too.
 inline std::string liveFeatureBudgetOption() {
-  return " --features " + std::to_string(FeatureTrackerOptions{}.max_features);
+  // (appended, not a literal + std::string sum: GCC 12's -Wrestrict misfires on that in the armhf
+  // build)
+  std::string option = " --features ";
+  option += std::to_string(FeatureTrackerOptions{}.max_features);
+  return option;
 }
 
 /// A fresh directory under $TMPDIR (or /tmp), removed when the object dies unless

@@ -52,8 +52,10 @@ const Y4mClip& orbitClip() {
     const epitrack::synth::SyntheticSequence seq(o);
     epitrack::synth::FrameRenderer renderer(seq);
     Y4mClip c;
-    c.header = "YUV4MPEG2 W" + std::to_string(kWidth) + " H" + std::to_string(kHeight) +
-               " F30:1 Ip A1:1 Cmono\n";
+    // (appended, not a literal + std::string sum: GCC 12's -Wrestrict misfires on that in the
+    // armhf build)
+    c.header = "YUV4MPEG2 W";
+    c.header += std::to_string(kWidth) + " H" + std::to_string(kHeight) + " F30:1 Ip A1:1 Cmono\n";
     epitrack::Image<uint8_t> image;
     for (int f = 0; f < o.frames; ++f) {
       renderer.render(f, image);

@@ -151,9 +151,11 @@ TEST_CASE("Each visible landmark projects onto a corner of the rendered texture"
         const int vj = static_cast<int>(std::lround(rel.dot(q.axis_v) / q.cell));
         // Image directions of the texture axes at the vertex; probe one point in each quadrant.
         const synth::Pose p = seq.pose(frame);
-        Eigen::Vector2d c0;
-        Eigen::Vector2d cu;
-        Eigen::Vector2d cv;
+        // Zero-initialised: project() leaves its output alone for a point behind the camera (GCC
+        // 12 saw that path in the armhf build: -Wmaybe-uninitialized).
+        Eigen::Vector2d c0 = Eigen::Vector2d::Zero();
+        Eigen::Vector2d cu = Eigen::Vector2d::Zero();
+        Eigen::Vector2d cv = Eigen::Vector2d::Zero();
         seq.camera().project(p.R_wc.transpose() * (l.position - p.t_wc), c0);
         seq.camera().project(p.R_wc.transpose() * (l.position + 0.01 * q.cell * q.axis_u - p.t_wc),
                              cu);

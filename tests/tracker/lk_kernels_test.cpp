@@ -6,6 +6,8 @@
 #include <catch2/catch.hpp>
 
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "algo/math/random.hpp"
@@ -26,6 +28,18 @@ int16_t uniformI16(SplitMix64& rng, int lo, int hi) {
 }
 
 }  // namespace
+
+TEST_CASE("The LK kernels chosen are the machine's", "[tracker][lk][simd]") {
+  // EPITRACK_EXPECT_LK_ISA: what the caller knows the machine has (.ci/cross_armhf.sh runs this
+  // binary on an emulated ARMv7 with NEON, expecting "neon", and without, expecting "scalar").
+  const std::string isa = epitrack::lkVectorIsa();
+  std::printf("LK kernels: %s (NEON: %s)\n", isa.c_str(), epitrack::lkHaveNeon() ? "yes" : "no");
+  CHECK((isa == "neon") == epitrack::lkHaveNeon());
+#if defined(__aarch64__)
+  CHECK(epitrack::lkHaveNeon());
+#endif
+  if (const char* expected = std::getenv("EPITRACK_EXPECT_LK_ISA")) CHECK(isa == expected);
+}
 
 TEST_CASE("The vector LK kernel gives the scalar kernel's sums bit for bit",
           "[tracker][lk][simd]") {

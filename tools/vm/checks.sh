@@ -173,7 +173,7 @@ grep -q 'vmcheck\.clip=1' /proc/cmdline 2>/dev/null && VM_CLIP=1
 if [ -f /clip/clip.gray ] && [ -n "$VM_CLIP" ]; then
   cw=720 ch=576
   n=$(wc -l </clip/clip.md5)
-  timeout 60 vivid-loop "$dev" "${VM_OUTPUT_DEVICE:-/dev/video1}" $cw $ch /clip/clip.gray "$n" 50 2>"$tmp/loop.err" &
+  timeout 60 vivid-loop "$dev" "${VM_OUTPUT_DEVICE:-/dev/video1}" $cw $ch /clip/clip.gray "$n" 5 2>"$tmp/loop.err" &
   lpid=$!
   sleep 1
   timeout 90 epitrack-record "v4l2:$dev?width=$cw&height=$ch&format=grey" --out "$tmp/rec" \

@@ -15,6 +15,7 @@
 #include <string.h>
 #include <sys/ioctl.h>
 #include <sys/mman.h>
+#include <time.h>
 #include <unistd.h>
 
 enum { kBuffers = 4 };
@@ -173,11 +174,10 @@ int main(int argc, char** argv) {
       streaming = 1;
     }
   }
-  // Let the queued frames go out, then stop.
-  for (unsigned i = 0; i < buffers; ++i) {
-    struct v4l2_buffer b = {.type = V4L2_BUF_TYPE_VIDEO_OUTPUT, .memory = V4L2_MEMORY_MMAP};
-    if (xioctl(out, VIDIOC_DQBUF, &b) < 0) break;
-  }
+  // Let the queued frames go out, then stop. Not by dequeuing them all: vivid keeps the frame on
+  // show until the next one comes, so the last DQBUF would wait forever.
+  const struct timespec drain = {.tv_sec = 1, .tv_nsec = 0};
+  nanosleep(&drain, NULL);
   enum v4l2_buf_type type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
   xioctl(out, VIDIOC_STREAMOFF, &type);
   fprintf(stderr, "vivid-loop: played %d frames (%d lead) of %dx%d\n", frames, lead, width, height);

@@ -188,7 +188,7 @@ append="console=ttyAMA0 rdinit=/init quiet loglevel=3 panic=-1"
 [ "$clip" = 0 ] || append+=" vmcheck.clip=1"
 t_boot=$SECONDS
 set +e
-timeout "$timeout_s" qemu-system-aarch64 -M virt -cpu cortex-a72 -smp 1 -m 512 -nographic \
+timeout "$timeout_s" qemu-system-aarch64 -M virt -cpu cortex-a72 -smp 1 -m 1024 -nographic \
   -no-reboot -nic none -kernel "$vmlinuz" -initrd "$initrd" -append "$append" </dev/null \
   >"$log" 2>&1
 qrc=$?

@@ -142,43 +142,61 @@ if [ -e "$alloc_lib" ]; then
   fi
 fi
 
-# A camera faster than the processing: 60 fps at 640x480 (about twice what the emulated CPU
-# keeps up with). Frames are dropped (counted, not queued) and the resident memory stays flat:
-# peak RSS after 300 frames within 512 KiB of the peak after 100 (see docs/device.md for why
-# that bound).
+# A camera faster than the processing: 640x360 at vivid's fastest rate for it (40 fps when 60 is
+# asked), faster than the emulated CPU keeps up with. Frames are dropped (counted, not queued) and
+# the peak resident memory after 800 frames stays within the documented budget of the whole
+# process, 17 MiB (docs/device.md, Memory; measured there at 704x576). Not "equal after 100
+# frames": everything is reserved before the first frame (zero-alloc above), but reserved pages
+# become resident only when first touched, as the map's point pool and keyframe ring fill, so the
+# RSS rises over the first hundreds of frames (measured: 11464 KiB after 100 frames, 15316 after
+# 400, 15964 after 800).
 fast="v4l2:$dev?width=640&height=360&fps=60&format=grey"
-"$device" --source "$fast" --focal 500 --max-frames 100 --poses "$tmp/fast100.jsonl" 2>"$tmp/fast100.err"
-rc1=$?
-"$device" --source "$fast" --focal 500 --max-frames 300 --poses "$tmp/fast300.jsonl" 2>"$tmp/fast300.err"
-rc2=$?
-d1=$(summary_field "$tmp/fast300.jsonl" dropped)
-r1=$(summary_field "$tmp/fast100.jsonl" peak_rss_kib)
-r2=$(summary_field "$tmp/fast300.jsonl" peak_rss_kib)
-echo "VMDATA fast-camera dropped_of_300=$d1 rss100_kib=$r1 rss300_kib=$r2 ms_median=$(summary_field "$tmp/fast300.jsonl" ms_median)"
-if [ $rc1 -eq 0 ] && [ $rc2 -eq 0 ] && [ "${d1:-0}" -gt 0 ] && [ -n "$r1" ] && [ -n "$r2" ] &&
-  [ $((r2 - r1)) -le 512 ]; then
-  pass slow-consumer "300 frames: $d1 dropped; peak RSS $r1 KiB after 100 frames, $r2 KiB after 300"
+rss_run() {
+  "$device" --source "$fast" --focal 500 --max-frames "$1" --poses "$tmp/fast$1.jsonl" \
+    2>"$tmp/fast$1.err" || echo "exit $? after $1 frames: $(tail -n 1 "$tmp/fast$1.err")" >>"$tmp/fast.fail"
+  summary_field "$tmp/fast$1.jsonl" peak_rss_kib
+}
+rm -f "$tmp/fast.fail"
+r1=$(rss_run 100)
+r2=$(rss_run 400)
+r3=$(rss_run 800)
+d=$(summary_field "$tmp/fast800.jsonl" dropped)
+echo "VMDATA fast-camera dropped_of_800=$d rss_kib_100=$r1 rss_kib_400=$r2 rss_kib_800=$r3 ms_median=$(summary_field "$tmp/fast800.jsonl" ms_median)"
+if [ ! -e "$tmp/fast.fail" ] && [ "${d:-0}" -gt 0 ] && [ -n "$r2" ] && [ -n "$r3" ] &&
+  [ "$r3" -le $((17 * 1024)) ]; then
+  pass slow-consumer "800 frames: $d dropped; peak RSS $r1 KiB after 100 frames, $r2 after 400, $r3 after 800"
 else
-  fail slow-consumer "exit $rc1/$rc2, dropped '$d1', peak RSS '$r1' -> '$r2' KiB $(tail -n 1 "$tmp/fast300.err")"
+  fail slow-consumer "$(cat "$tmp/fast.fail" 2>/dev/null) dropped '$d', peak RSS '$r1' -> '$r2' -> '$r3' KiB"
 fi
 
 # A real clip through the kernel: vivid-loop plays a rendered clip (720x576, the S-Video size) into
 # vivid's output device with the video loop on; epitrack-record captures /dev/video0 meanwhile. The
 # loop drops and repeats frames under emulation, so captured frames are matched to clip frames by
 # their pixels (md5 of each frame): every frame captured between the first and the last clip frame
-# seen must be a clip frame, bit for bit, in clip order, and the clip's last frame must arrive.
-# Not yet passing (the capture side hung under emulation in the first runs), so it runs only when
-# asked for: vm.sh --clip (vmcheck.clip=1 on the kernel command line) or VM_CLIP=1.
-grep -q 'vmcheck\.clip=1' /proc/cmdline 2>/dev/null && VM_CLIP=1
+# seen must be a clip frame, bit for bit, in clip order, from the clip's first to its last frame.
+# Runs in vm.sh by default (vm.sh --no-clip leaves it out: vmcheck.clip=0), on a board with
+# VM_CLIP=1 when it has a vivid-like loop.
+case "$(cat /proc/cmdline 2>/dev/null)" in
+  *vmcheck.clip=1*) VM_CLIP=1 ;;
+esac
 if [ -f /clip/clip.gray ] && [ -n "$VM_CLIP" ]; then
   cw=720 ch=576
   n=$(wc -l </clip/clip.md5)
-  timeout 60 vivid-loop "$dev" "${VM_OUTPUT_DEVICE:-/dev/video1}" $cw $ch /clip/clip.gray "$n" 5 2>"$tmp/loop.err" &
+  rm -f "$tmp/go"
+  timeout 120 vivid-loop "$dev" "${VM_OUTPUT_DEVICE:-/dev/video1}" $cw $ch /clip/clip.gray "$n" \
+    "$tmp/go" 2>"$tmp/loop.err" &
   lpid=$!
   sleep 1
-  timeout 90 epitrack-record "v4l2:$dev?width=$cw&height=$ch&format=grey" --out "$tmp/rec" \
+  timeout 150 epitrack-record "v4l2:$dev?width=$cw&height=$ch&format=grey" --out "$tmp/rec" \
     --max-timeouts 3 --quiet 2>"$tmp/rec.err" &
   rpid=$!
+  # The clip starts once the recording has its first frame (frame 0 is on show until then).
+  i=0
+  while [ ! -e "$tmp/rec/000000.pgm" ] && [ $i -lt 300 ]; do
+    sleep 0.1
+    i=$((i + 1))
+  done
+  touch "$tmp/go"
   wait $lpid
   lrc=$?
   sleep 0.5
@@ -199,6 +217,7 @@ if [ -f /clip/clip.gray ] && [ -n "$VM_CLIP" ]; then
         if (seq[i] == prev) dup++; else { seen++; if (prev >= 0) skip += seq[i] - prev - 1 }
         prev = seq[i]
       }
+      if (seq[first] != 0) { print "the first clip frame seen is " seq[first] ", not 0"; exit 1 }
       if (prev != n - 1) { print "the last clip frame seen is " prev " of " n; exit 1 }
       printf "%d captured, %d distinct clip frames of %d in order, %d repeated, %d skipped\n", m, seen, n, dup, skip
     }' /clip/clip.md5 "$tmp/rec.md5")

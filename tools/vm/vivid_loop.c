@@ -1,12 +1,14 @@
 // vivid-loop: plays a raw 8-bit gray clip into vivid's video output device with vivid's video loop
 // on, so that its capture device delivers the clip's frames through the kernel
 // (tools/vm/checks.sh).
-//   vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES LEAD
-// CLIP.gray holds FRAMES frames of WIDTH x HEIGHT bytes. The first frame is shown LEAD extra
-// periods before the clip runs (time for the tracker to start). vivid loops output to capture
-// only between like connectors with the same format, field order and size: both are switched to
-// S-Video, GREY, the same field order, and its on-screen text is turned off (it would change the
-// pixels). Exit: 0 played, 1 a device refused something (the message says what), 2 bad arguments.
+//   vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES GO_FILE
+// CLIP.gray holds FRAMES frames of WIDTH x HEIGHT bytes. The first frame is shown until GO_FILE
+// exists (at most 60 s: the capture has started), then the clip runs. The capture's input must be
+// chosen before anyone streams from it, hence the wait instead of starting after the capture. vivid
+// loops output to capture only between like connectors with the same format, field order and size:
+// both are switched to S-Video, GREY, the same field order, and its on-screen text is turned off
+// (it would change the pixels). Exit: 0 played, 1 a device refused something (the message says
+// what), 2 bad arguments.
 #include <errno.h>
 #include <fcntl.h>
 #include <linux/videodev2.h>
@@ -103,9 +105,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   const int width = atoi(argv[3]), height = atoi(argv[4]), frames = atoi(argv[6]);
-  const int lead = atoi(argv[7]);
-  if (width <= 0 || height <= 0 || frames <= 0 || lead < 0) {
-    fprintf(stderr, "vivid-loop: bad size, frame count or lead\n");
+  const char* go_file = argv[7];
+  if (width <= 0 || height <= 0 || frames <= 0) {
+    fprintf(stderr, "vivid-loop: bad size or frame count\n");
     return 2;
   }
   const size_t frame_bytes = (size_t)width * (size_t)height;
@@ -153,8 +155,15 @@ int main(int argc, char** argv) {
   }
   const unsigned buffers = req.count < kBuffers ? req.count : kBuffers;
   int streaming = 0;
-  for (int k = 0; k < lead + frames; ++k) {
-    const unsigned char* src = clip + frame_bytes * (size_t)(k < lead ? 0 : k - lead);
+  int lead = 0;  // periods frame 0 was shown before GO_FILE appeared
+  int clip_frame = 0;
+  for (int k = 0; clip_frame < frames; ++k) {
+    if (clip_frame == 0 && access(go_file, F_OK) != 0 && lead < 60 * 25) {
+      ++lead;
+    } else {
+      ++clip_frame;
+    }
+    const unsigned char* src = clip + frame_bytes * (size_t)(clip_frame == 0 ? 0 : clip_frame - 1);
     struct v4l2_buffer b = {.type = V4L2_BUF_TYPE_VIDEO_OUTPUT, .memory = V4L2_MEMORY_MMAP};
     if ((unsigned)k < buffers) {
       b.index = (unsigned)k;
@@ -180,7 +189,8 @@ int main(int argc, char** argv) {
   nanosleep(&drain, NULL);
   enum v4l2_buf_type type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
   xioctl(out, VIDIOC_STREAMOFF, &type);
-  fprintf(stderr, "vivid-loop: played %d frames (%d lead) of %dx%d\n", frames, lead, width, height);
+  fprintf(stderr, "vivid-loop: played %d frames (frame 0 shown %d periods before) of %dx%d\n",
+          frames, lead, width, height);
   free(clip);
   return 0;
 }

@@ -547,14 +547,18 @@ FrameStatus V4l2CaptureSource::next(Frame& frame) {
                " of " + std::to_string(buffer_count_);
       return FrameStatus::kError;
     }
-    // Index: frames since the first, by the driver's sequence number when it counts (so dropped
-    // frames leave gaps), else by our count.
+    // Read everything the frame needs from `buf` now: VIDIOC_QBUF below hands the buffer back and
+    // the kernel (videobuf2) rewrites the caller's struct with the re-queued buffer's state, whose
+    // timestamp is no longer this frame's (found on Linux 6.1 with vivid under qemu).
     const auto sequence = static_cast<int64_t>(buf.sequence);
+    const double timestamp_s = static_cast<double>(buf.timestamp.tv_sec) +
+                               static_cast<double>(buf.timestamp.tv_usec) * 1e-6;
     if (first_sequence_ < 0) {
       first_sequence_ = sequence;
-      first_timestamp_s_ = static_cast<double>(buf.timestamp.tv_sec) +
-                           static_cast<double>(buf.timestamp.tv_usec) * 1e-6;
+      first_timestamp_s_ = timestamp_s;
     }
+    // Index: frames since the first, by the driver's sequence number when it counts (so dropped
+    // frames leave gaps), else by our count.
     const int64_t index = std::max(frames_dequeued_, sequence - first_sequence_);
     frames_dequeued_ = index + 1;
     FrameStatus status = FrameStatus::kOk;
@@ -577,8 +581,7 @@ FrameStatus V4l2CaptureSource::next(Frame& frame) {
     if (status != FrameStatus::kOk) return status;
     frame.luma = luma_.constView();
     frame.index = index;
-    frame.timestamp_s = static_cast<double>(buf.timestamp.tv_sec) +
-                        static_cast<double>(buf.timestamp.tv_usec) * 1e-6 - first_timestamp_s_;
+    frame.timestamp_s = timestamp_s - first_timestamp_s_;
     frame.encoded = fourcc_ == V4L2_PIX_FMT_MJPEG ? encoded_.data() : nullptr;
     frame.encoded_size = fourcc_ == V4L2_PIX_FMT_MJPEG ? encoded_.size() : 0;
     return FrameStatus::kOk;

@@ -277,6 +277,13 @@ int FakeV4l2Driver::ioctl(int fd, unsigned long request, void* arg) {
       if (b.queued) return protocolError(EINVAL);
       b.queued = true;
       queue_.push_back(buf->index);
+      // Like videobuf2, write the queued buffer's state back into the caller's struct: a capture
+      // buffer waiting in the driver has no timestamp or sequence yet, so a caller that reads the
+      // frame's timestamp after QBUF gets garbage, as it would from the kernel.
+      buf->flags = V4L2_BUF_FLAG_MAPPED | V4L2_BUF_FLAG_QUEUED | V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+      buf->timestamp = timeval{};
+      buf->sequence = 0;
+      buf->bytesused = 0;
       return 0;
     }
     case VIDIOC_STREAMON:

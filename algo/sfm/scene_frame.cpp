@@ -107,23 +107,30 @@ struct PlaneCandidate {
 
 /// RANSAC on 3-point samples (Fischler & Bolles 1981): the largest consensus set wins (the first
 /// one on ties).
+// The plane through three sampled points (one RANSAC draw); false for a repeated index or a nearly
+// collinear sample (area tiny relative to the threshold squared), which defines no plane.
+bool samplePlane(const std::vector<Eigen::Vector3d>& points, double threshold, SampleGenerator& rng,
+                 Plane& plane) {
+  const std::size_t n = points.size();
+  const std::size_t a = rng.index(n);
+  const std::size_t b = rng.index(n);
+  const std::size_t c = rng.index(n);
+  if (a == b || b == c || a == c) return false;
+  const Eigen::Vector3d normal = (points[b] - points[a]).cross(points[c] - points[a]);
+  const double norm = normal.norm();
+  if (!(norm > threshold * threshold)) return false;
+  plane.normal = normal / norm;
+  plane.offset = plane.normal.dot(points[a]);
+  return true;
+}
+
 PlaneCandidate ransacPlane(const std::vector<Eigen::Vector3d>& points, double threshold,
                            const SceneFrameOptions& options) {
   PlaneCandidate best;
-  const std::size_t n = points.size();
   SampleGenerator rng(options.seed);
   for (int it = 0; it < options.ransac_iterations; ++it) {
-    const std::size_t a = rng.index(n);
-    const std::size_t b = rng.index(n);
-    const std::size_t c = rng.index(n);
-    if (a == b || b == c || a == c) continue;
-    const Eigen::Vector3d normal = (points[b] - points[a]).cross(points[c] - points[a]);
-    const double norm = normal.norm();
-    // Nearly collinear samples define no plane (area tiny relative to the threshold squared).
-    if (!(norm > threshold * threshold)) continue;
     Plane candidate;
-    candidate.normal = normal / norm;
-    candidate.offset = candidate.normal.dot(points[a]);
+    if (!samplePlane(points, threshold, rng, candidate)) continue;
     int count = 0;
     for (const Eigen::Vector3d& X : points) {
       count += std::abs(candidate.signedDistance(X)) < threshold ? 1 : 0;
@@ -289,17 +296,12 @@ PlaneFit findGroundPlane(const std::vector<Eigen::Vector3d>& points,
   PlaneCandidate best;
   SampleGenerator rng(options.seed);
   for (int it = 0; it < options.ransac_iterations; ++it) {
-    const std::size_t a = rng.index(n);
-    const std::size_t b = rng.index(n);
-    const std::size_t c = rng.index(n);
-    if (a == b || b == c || a == c) continue;
-    const Eigen::Vector3d normal = (points[b] - points[a]).cross(points[c] - points[a]);
-    const double norm = normal.norm();
-    if (!(norm > threshold * threshold)) continue;
     Plane candidate;
-    candidate.normal = normal / norm;
-    if (candidate.normal.dot(up) < 0.0) candidate.normal = -candidate.normal;
-    candidate.offset = candidate.normal.dot(points[a]);
+    if (!samplePlane(points, threshold, rng, candidate)) continue;
+    if (candidate.normal.dot(up) < 0.0) {  // negation is exact: the same plane, facing up
+      candidate.normal = -candidate.normal;
+      candidate.offset = -candidate.offset;
+    }
     int inliers = 0;
     if (!acceptable(candidate, inliers)) continue;
     if (inliers > best.count) {

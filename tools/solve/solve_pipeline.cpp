@@ -76,11 +76,49 @@ void warnAboutObject(const io::Reconstruction& rec, io::ProgressReporter::Mode p
                  obj.visible_frames, obj.solved_frames);
 }
 
+// The camera-to-scene transform of a solved camera (what the renderer draws with).
+Eigen::Isometry3d cameraToScene(const io::SolvedCamera& cam) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = cam.R_wc;
+  T.translation() = cam.p_wc;
+  return T;
+}
+
+// The solved frame nearest the middle of the solved ones (-1: none): the report's scene-frame
+// picture (the object is placed for the middle of the clip, see object_placement.hpp).
+int middleSolvedFrame(const io::Reconstruction& rec) {
+  std::vector<int> solved;
+  for (const auto& c : rec.cameras)
+    if (c.solved) solved.push_back(static_cast<int>(c.frame));
+  return solved.empty() ? -1 : solved[solved.size() / 2];
+}
+
+// DIR/scene_frame.jpg (issue 23): `plate` with the ground grid, the object and the scene's up as
+// a yellow arrow beside the object (offset along the camera's right, so it stands clear of it).
+bool writeSceneFrameImage(const io::Reconstruction& rec, int frame, const Mesh& object,
+                          const LineSet& grid, OverlayRenderer& renderer, ImageView<Rgb8> plate,
+                          hal::JpegEncoder& encoder, const std::string& path, std::string& error) {
+  const auto& cam = rec.cameras[static_cast<std::size_t>(frame)];
+  Eigen::Vector3d right(cam.R_wc(0, 0), cam.R_wc(1, 0), 0.0);
+  right = right.norm() > 1e-9 ? Eigen::Vector3d(right.normalized()) : Eigen::Vector3d::UnitX();
+  const double scale = rec.object.scale;
+  const double length = std::isfinite(rec.object.height) ? 1.3 * rec.object.height : 0.6 * scale;
+  const Eigen::Isometry3d T = cameraToScene(cam);
+  renderer.clear();
+  renderer.drawLines(grid, T);
+  renderer.drawMesh(object, T);
+  renderer.drawMesh(render::makeUpArrow(rec.object.at + 0.45 * scale * right, length), T);
+  renderer.composite(plate);
+  return encoder.encodeRgb(reinterpret_cast<const uint8_t*>(plate.data), plate.width, plate.height,
+                           plate.stride * static_cast<std::ptrdiff_t>(sizeof(Rgb8)), 90, error) &&
+         hal::writeFileAtomic(path, encoder.data(), encoder.size(), error);
+}
+
 // Every name epitrack-solve writes in its output directory, besides augmented/NNNNNN.jpg.
 std::vector<std::string> solveOutputNames() {
   std::vector<std::string> names = {"summary.json"};
   names.insert(names.end(), io::exportFileNames().begin(), io::exportFileNames().end());
-  names.insert(names.end(), {"report.html", "augmented.avi"});
+  names.insert(names.end(), {"report.html", "augmented.avi", "scene_frame.jpg"});
   return names;
 }
 
@@ -580,6 +618,9 @@ int runSolve(const SolveCommandOptions& o) {
                                             : makeGroundGrid(rec.object.at, 1.0 * rec.object.scale,
                                                              0.25 * rec.object.scale);
     Image<Rgb8> rgb(width, height);
+    const int scene_frame = o.render == "none" ? -1 : middleSolvedFrame(rec);
+    Image<Rgb8> scene_plate;
+    if (scene_frame >= 0) scene_plate.allocate(width, height);
     // --overlay tracks: the tracked features on the right, each observation classified by its
     // reprojection error in the exported model (the threshold of the report's statistics).
     const bool with_tracks = o.overlay == "tracks";
@@ -626,11 +667,10 @@ int runSolve(const SolveCommandOptions& o) {
           rgb.view()(x, y) = Rgb8{v, v, v};
         }
       if (with_tracks) copyPixels<Rgb8>(rgb.constView(), panel.view());
+      if (f == scene_frame) copyPixels<Rgb8>(rgb.constView(), scene_plate.view());
       const auto& cam = rec.cameras[static_cast<std::size_t>(f)];
       if (cam.solved && (!mesh.triangles.empty() || !grid.from.empty())) {
-        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        T.linear() = cam.R_wc;
-        T.translation() = cam.p_wc;
+        const Eigen::Isometry3d T = cameraToScene(cam);
         renderer.clear();
         renderer.drawLines(grid, T);
         renderer.drawMesh(mesh, T);
@@ -653,6 +693,16 @@ int runSolve(const SolveCommandOptions& o) {
       if (!hal::writeFileAtomic(aug_dir + name, encoder.data(), encoder.size(), error)) {
         fail(error.c_str());
         return 1;
+      }
+      if (f == scene_frame) {
+        if (!writeSceneFrameImage(rec, f, mesh, grid, renderer, scene_plate.view(), encoder,
+                                  o.out_dir + "/scene_frame.jpg", error)) {
+          fail(error.c_str());
+          return 1;
+        }
+        report.scene_frame_image = "scene_frame.jpg";
+        report.scene_frame_index = f;
+        rec.files.emplace_back("scene_frame.jpg");
       }
       ++index;
       ++f;

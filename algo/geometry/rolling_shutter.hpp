@@ -21,7 +21,9 @@
 // Hedborg et al. 2012 use the same per-frame constant-velocity model). line_delay = 0 is the global
 // shutter, exactly.
 //
-// Units: a readout of R ms on a clip of P ms per frame and H rows is line_delay = R / (P H).
+// Units: a readout of R ms (first row to last) on a clip of P ms per frame and H rows is
+// line_delay = R / (P (H - 1)); epitrack-synth --rolling-shutter renders the same model with the
+// middle row as the reference (docs/rolling-shutter.md).
 
 #include <cstdint>
 #include <span>
@@ -38,10 +40,11 @@ struct RollingShutter {
   double line_delay = 0.0;     ///< frame intervals per row (0: global shutter)
   double reference_row = 0.0;  ///< the row whose pose is the frame's pose
 
-  /// A readout of `readout_frames` frame intervals over `rows` rows, referred to `reference_row`.
+  /// A readout of `readout_frames` frame intervals from the first row's exposure to the last's
+  /// (row 0 to row rows - 1), referred to `reference_row`.
   static RollingShutter fromReadout(double readout_frames, int rows, double reference_row) {
     RollingShutter rs;
-    rs.line_delay = rows > 0 ? readout_frames / rows : 0.0;
+    rs.line_delay = rows > 1 ? readout_frames / (rows - 1) : 0.0;
     rs.reference_row = reference_row;
     return rs;
   }
@@ -97,8 +100,8 @@ struct RollingShutterResectionResult {
 /// Refines a frame's reference-row pose and its readout motion from 2D-3D correspondences
 /// (`observed` in distorted pixels), starting from `pose` and `motion` (a global-shutter
 /// resection and zero motion are fine starts): Gauss-Newton with a Levenberg damping over the 12
-/// parameters (pose increment, w, v), numeric central-difference Jacobians of
-/// projectRollingShutter. Fixed-size normal equations: never allocates.
+/// parameters (pose increment, w, v), analytic Jacobians with each point's row time held (see
+/// the .cpp). Fixed-size normal equations: never allocates.
 RollingShutterResectionResult refineRollingShutterPose(
     const CameraIntrinsics& k, const RollingShutter& shutter, std::span<const Eigen::Vector3d> X,
     std::span<const Eigen::Vector2d> observed, PoseCw& pose, RollingShutterMotion& motion,

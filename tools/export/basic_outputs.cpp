@@ -174,6 +174,16 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("focal_refined", true);
     j.field("focal_given_px", rec.focal_given_px);
   }
+  if (rec.readout_ms > 0.0) {
+    j.key("rolling_shutter");
+    j.beginObject();
+    j.field("readout_ms", rec.readout_ms);
+    j.field("readout_source", std::string("given"));
+    j.field("reference_row", rec.readout_reference_row);
+    j.field("rms_before_px", rec.readout_rms_before_px);
+    j.field("rms_after_px", rec.readout_rms_after_px);
+    j.endObject();
+  }
   j.field("motion", rec.motion);
   if (!rec.matcher.empty()) j.field("matcher", rec.matcher);
   j.field("mean_reproj_px", mean_px);

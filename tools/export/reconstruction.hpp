@@ -129,6 +129,13 @@ struct Reconstruction {
   /// > 0: the focal was given (--intrinsics or --focal) and refined from this value
   /// (epitrack-solve --refine-focal); summary.json says focal_refined and focal_given_px.
   double focal_given_px = 0.0;
+  /// Rolling shutter (epitrack-solve --readout-ms): readout in ms (0: global shutter), the row
+  /// whose pose the frame's pose is, and the reprojection RMS of the rolling-shutter refinement
+  /// before and after it (summary.json "rolling_shutter").
+  double readout_ms = 0.0;
+  double readout_reference_row = 0.0;
+  double readout_rms_before_px = 0.0;
+  double readout_rms_after_px = 0.0;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see

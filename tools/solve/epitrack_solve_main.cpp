@@ -60,6 +60,12 @@ int main(int argc, char** argv) {
   cl.choice("distortion", {"none", "k1", "k1k2"},
             "radial distortion to estimate in the final bundle adjustment (default none)",
             &distortion);
+  cl.real("readout-ms", "MS",
+          "rolling shutter: the sensor's readout time (first row to last; phones and CMOS "
+          "modules 10-35 ms). Each frame's pose and its motion over the readout are refined, the "
+          "points seen from the rows' poses; the poses written are the middle row's (default 0: "
+          "global shutter)",
+          &o.readout_ms, 0.0, 1000.0);
   cl.text("tracks", "CSV",
           "solve these 2D tracks (tracks.csv: frame,track_id,x,y, frames numbered as "
           "epitrack-track numbers INPUT's readable frames) instead of tracking INPUT; INPUT "

@@ -1,5 +1,6 @@
 #include "tools/solve/solve_pipeline.hpp"
 
+#include "algo/sfm/rolling_shutter_refinement.hpp"
 #include "tools/solve/solve_run.hpp"
 
 #include <algorithm>
@@ -237,12 +238,12 @@ void describeSolve(SolveRun& run, const Solver& solver) {
 }
 
 // The cameras, the valid points and their observations in solved frames.
-void collectGeometry(SolveRun& run, const Solver& solver) {
+void collectGeometry(SolveRun& run) {
   auto& rec = run.rec;
   const auto& tracks = run.tracks;
   const int frames = run.frames;
   for (int f = 0; f < frames; ++f) {
-    const auto& fr = solver.frames()[static_cast<std::size_t>(f)];
+    const auto& fr = run.solved_frames[static_cast<std::size_t>(f)];
     io::SolvedCamera c;
     c.frame = f;
     c.timestamp = run.timestamps[static_cast<std::size_t>(f)];
@@ -256,7 +257,7 @@ void collectGeometry(SolveRun& run, const Solver& solver) {
     rec.cameras.push_back(c);
   }
   std::vector<char> point_valid(static_cast<std::size_t>(tracks.trackCount()), 0);
-  for (const auto& p : solver.points()) {
+  for (const auto& p : run.solved_points) {
     if (!p.valid || !p.X.allFinite()) continue;
     io::ScenePoint sp;
     sp.id = tracks.trackId(p.track);
@@ -272,10 +273,44 @@ void collectGeometry(SolveRun& run, const Solver& solver) {
   for (std::size_t i = 0; i < tracks.observations().size(); ++i) {
     const auto& ob = tracks.observations()[i];
     if (!point_valid[static_cast<std::size_t>(ob.track)]) continue;
-    if (!solver.frames()[static_cast<std::size_t>(ob.frame)].solved) continue;
+    if (!run.solved_frames[static_cast<std::size_t>(ob.frame)].solved) continue;
     rec_observation[i] = static_cast<int>(rec.observations.size());
     rec.observations.push_back({ob.frame, tracks.trackId(ob.track), ob.x, ob.y});
   }
+}
+
+// --readout-ms: the rolling-shutter refinement of the solved frames and points (issue 27): each
+// frame's middle-row pose and its motion over the readout, the points from the rows' poses
+// (algo/sfm/rolling_shutter_refinement.hpp). The readout in frame intervals needs the frame rate
+// (the input's, 30 fps when it has none).
+void refineReadout(SolveRun& run, const Solver& solver) {
+  run.solved_frames = solver.frames();
+  run.solved_points = solver.points();
+  if (!(run.o.readout_ms > 0.0) || solver.solvedFrames() == 0) return;
+  const double fps = run.source->info().fps > 0.0 ? run.source->info().fps : 30.0;
+  const SolverSummary s = solver.summary();
+  CameraIntrinsics K = CameraIntrinsics::centered(run.width, run.height, s.focal_px);
+  K.cx = s.cx;
+  K.cy = s.cy;
+  K.fy = s.focal_px * s.aspect;
+  K.k1 = s.k1;
+  K.k2 = s.k2;
+  const double reference_row = 0.5 * (run.height - 1);
+  const RollingShutter shutter =
+      RollingShutter::fromReadout(run.o.readout_ms * fps / 1000.0, run.height, reference_row);
+  run.progress.message("rolling shutter: refining " + std::to_string(solver.solvedFrames()) +
+                       " frames with a " + std::to_string(run.o.readout_ms).substr(0, 5) +
+                       " ms readout");
+  std::vector<RollingShutterMotion> motions;
+  RollingShutterRefinementOptions options;
+  options.reproj_threshold_px = 2.0 * run.so.reproj_threshold_px;
+  const auto r = refineRollingShutter(run.tracks, K, shutter, run.solved_frames, run.solved_points,
+                                      motions, options);
+  run.rec.readout_ms = run.o.readout_ms;
+  run.rec.readout_reference_row = reference_row;
+  run.rec.readout_rms_before_px = r.rms_before_px;
+  run.rec.readout_rms_after_px = r.rms_after_px;
+  run.clock.lap("rolling_shutter");
 }
 
 }  // namespace
@@ -284,7 +319,7 @@ void collectGeometry(SolveRun& run, const Solver& solver) {
 // reprojection error.
 void buildReconstruction(SolveRun& run, const Solver& solver) {
   describeSolve(run, solver);
-  collectGeometry(run, solver);
+  collectGeometry(run);
   auto& rec = run.rec;
   if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||
       solver.status() == Solver::Status::kPartial) {
@@ -425,6 +460,7 @@ int runSolve(const SolveCommandOptions& options) {
     if (const auto code = stage(run)) return *code;
   Solver solver(run.tracks, run.width, run.height, run.so);
   if (const auto code = solveStages(run, solver)) return *code;
+  refineReadout(run, solver);
   buildReconstruction(run, solver);
   placeObject(run, solver);
   if (const auto code = renderAugmented(run, solver.solvedFrames())) return *code;

@@ -28,7 +28,10 @@ struct SolveCommandOptions {
   std::string intrinsics_file;  ///< given intrinsics (focal, principal point, distortion)
   double focal_px = 0.0;        ///< given focal (0: self-calibrate)
   int distortion = 0;           ///< 0 none, 1 k1, 2 k1k2 (estimated)
-  SceneFrameOptions scene;      ///< --origin (defaults tuned in the constructor)
+  /// Rolling shutter (--readout-ms): the time from the first row's exposure to the last's, in
+  /// milliseconds (0: a global shutter). The frames' poses are then the middle row's.
+  double readout_ms = 0.0;
+  SceneFrameOptions scene;  ///< --origin (defaults tuned in the constructor)
   std::string origin_text = "plane";
   std::string render = "none";   ///< towers | cube | axes | none
   std::string overlay = "none";  ///< tracks: augmented frames side by side with the 2D tracks

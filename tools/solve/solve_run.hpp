@@ -82,6 +82,9 @@ struct SolveRun {
   // The solve and what is written (solve_pipeline.cpp, solve_render.cpp).
   bool solve_ok = false;
   SolverSummary summary;
+  /// The solver's frames and points, refined for a rolling shutter with --readout-ms.
+  std::vector<SolvedFrame> solved_frames;
+  std::vector<MapPoint> solved_points;
   /// rec_observation[i]: index into rec.observations of tracks.observations()[i], -1 when left out.
   std::vector<int> rec_observation;
   std::string stop_stage;  ///< the stage a stop signal ended after the solve, if one did

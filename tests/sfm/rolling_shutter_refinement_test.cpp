@@ -1,0 +1,134 @@
+// The rolling-shutter refinement of a solve (algo/sfm/rolling_shutter_refinement) on tracks made
+// from the synthetic truth as a rolling shutter sees it: each corner where the camera was when its
+// row was exposed, with the exact pose of that instant from the trajectory (not the per-frame
+// constant-velocity model the refinement fits), plus 0.3 px of seeded noise.
+#include "algo/sfm/rolling_shutter_refinement.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "algo/math/random.hpp"
+#include "algo/sfm/solver.hpp"
+#include "tests/support/seeded_random.hpp"
+#include "tools/eval/trajectory_metrics.hpp"
+#include "tools/synth/synthetic_sequence.hpp"
+
+using namespace epitrack;
+
+namespace {
+
+struct RsClip {
+  synth::SynthOptions options;
+  CameraIntrinsics K;
+  RollingShutter shutter;
+  TrackTable tracks;
+  std::vector<hal::TrajectoryEntry> gt;  ///< the reference row's pose (the frame time)
+};
+
+// Where the rolling shutter sees X in frame f: the fixed point of the row, with the true pose of
+// the row's instant f + line_delay (y - reference_row).
+bool seenAt(const synth::SyntheticSequence& seq, const CameraIntrinsics& K,
+            const RollingShutter& rs, int f, const Eigen::Vector3d& X, Eigen::Vector2d& px) {
+  double y = rs.reference_row;
+  for (int i = 0; i < 20; ++i) {
+    const auto pose = seq.pose(f + rs.rowTime(y));
+    const Eigen::Vector3d x_c = pose.R_wc.transpose() * (X - pose.t_wc);
+    if (!(x_c.z() > 0.0)) return false;
+    px = Eigen::Vector2d(K.fx * x_c.x() / x_c.z() + K.cx, K.fy * x_c.y() / x_c.z() + K.cy);
+    if (std::fabs(px.y() - y) < 1e-7) return true;
+    y = px.y();
+  }
+  return false;
+}
+
+void makeClip(RsClip& c, synth::SceneKind kind, int frames, double readout_frames) {
+  c.options.kind = kind;
+  c.options.frames = frames;
+  c.options.width = 640;
+  c.options.height = 480;
+  c.options.focal = 500.0;
+  synth::SyntheticSequence seq(c.options);
+  c.K = CameraIntrinsics::centered(640, 480, 500.0);
+  c.shutter = RollingShutter::fromReadout(readout_frames, 480, 239.5);
+  std::vector<synth::LandmarkObservation> lm;
+  SplitMix64 rng(5);
+  c.tracks.reserve(frames, static_cast<std::size_t>(frames) * 500);
+  for (int f = 0; f < frames; ++f) {
+    seq.visibleLandmarks(f, lm);
+    for (const auto& l : lm) {
+      const Eigen::Vector3d X = seq.scene().landmarks[static_cast<std::size_t>(l.id)].position;
+      Eigen::Vector2d px;
+      if (!seenAt(seq, c.K, c.shutter, f, X, px)) continue;
+      if (px.x() < 0 || px.y() < 0 || px.x() > 639 || px.y() > 479) continue;
+      const double ny = test::standardNormal(rng);  // one draw per statement: portable
+      const double nx = test::standardNormal(rng);
+      c.tracks.add(f, l.id, px.x() + 0.3 * nx, px.y() + 0.3 * ny);
+    }
+    const auto p = seq.pose(f);
+    c.gt.push_back({static_cast<double>(f), p.t_wc, Eigen::Quaterniond(p.R_wc)});
+  }
+  c.tracks.setFrameCount(frames);
+  c.tracks.finalize();
+}
+
+eval::TrajectoryMetrics score(const RsClip& c, const std::vector<SolvedFrame>& frames) {
+  std::vector<hal::TrajectoryEntry> est;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (!frames[f].solved) continue;
+    est.push_back({static_cast<double>(f), frames[f].pose.centre(),
+                   Eigen::Quaterniond(Eigen::Matrix3d(frames[f].pose.R_cw.transpose()))});
+  }
+  eval::TrajectoryMetrics m;
+  std::string error;
+  REQUIRE(eval::evaluateTrajectory(c.gt, est, 0.01, m, error));
+  return m;
+}
+
+}  // namespace
+
+// The global-shutter solve of a clip (given focal); its frames and points.
+Solver solveGlobal(const RsClip& c) {
+  SolverOptions o;
+  o.focal_px = c.K.fx;
+  Solver s(c.tracks, c.K.width, c.K.height, o);
+  REQUIRE((s.calibrate() && s.initialize() && s.registerFrames() && s.finalize()));
+  return s;
+}
+
+TEST_CASE("Rolling shutter: a shaky clip solved with the readout given", "[sfm][rs][slow]") {
+  // The same shake seen by a global shutter: what the rolling-shutter solve should come close to.
+  RsClip still;
+  makeClip(still, synth::SceneKind::kShake, 120, 0.0);
+  const auto reference = score(still, solveGlobal(still).frames());
+
+  RsClip c;
+  makeClip(c, synth::SceneKind::kShake, 120, 30.0 / 33.3);  // 30 ms of a 33 ms frame
+  const Solver s = solveGlobal(c);
+  std::vector<SolvedFrame> frames = s.frames();
+  std::vector<MapPoint> points = s.points();
+  const auto global = score(c, frames);
+  std::vector<RollingShutterMotion> motions;
+  const auto r = refineRollingShutter(c.tracks, c.K, c.shutter, frames, points, motions, {});
+  const auto rolling = score(c, frames);
+  // The shake's path is a slow sideways drift, nearly a line: the similarity's rotation about it
+  // is weakly defined, so rotations are compared frame to frame (RPE), which needs no alignment.
+  INFO("ATE % of the path: global shutter "
+       << 100.0 * reference.ate_rmse_rel << ", rolling solved as global "
+       << 100.0 * global.ate_rmse_rel << ", with the readout " << 100.0 * rolling.ate_rmse_rel
+       << "; RPE rotation deg: " << reference.rpe_rot_deg_mean << ", " << global.rpe_rot_deg_mean
+       << ", " << rolling.rpe_rot_deg_mean << "; rms " << r.rms_before_px << " -> "
+       << r.rms_after_px << " px over " << r.frames << " frames");
+  CHECK(r.frames == s.solvedFrames());
+  CHECK(r.rms_after_px < 0.5);  // the noise: sqrt(2) x 0.3 px = 0.42 px
+  CHECK(r.rms_after_px < 0.6 * r.rms_before_px);
+  CHECK(rolling.ate_rmse_rel < 0.2 * global.ate_rmse_rel);
+  CHECK(rolling.rpe_rot_deg_mean < 0.2 * global.rpe_rot_deg_mean);
+  // Measured 0.29 % against 0.090 % (4.3 % without the model); 12 rounds instead of 4 give the
+  // same: what is left is the constant-velocity model against the jitter within a readout and the
+  // six more unknowns per frame, not the alternation.
+  CHECK(rolling.ate_rmse_rel < 4.0 * reference.ate_rmse_rel);
+}

@@ -6,6 +6,7 @@
 #include "algo/core/assert.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/geometry/undistort.hpp"
 #include "algo/math/median.hpp"
 #include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/reprojection.hpp"
@@ -146,17 +147,7 @@ void LiveMap::reset() {
   robust_sigma_px_ = 0.0;  // a new map measures its own residual scale
 }
 
-Eigen::Vector2d LiveMap::normalize(double x, double y) const {
-  const Eigen::Vector2d d((x - K_.cx) / K_.fx, (y - K_.cy) / K_.fy);
-  if (!K_.hasDistortion()) return d;
-  // Inverse of the radial model by fixed-point iteration: p = d / (1 + k1 r^2 + k2 r^4).
-  Eigen::Vector2d p = d;
-  for (int i = 0; i < 8; ++i) {
-    const double r2 = p.squaredNorm();
-    p = d / (1.0 + K_.k1 * r2 + K_.k2 * r2 * r2);
-  }
-  return p;
-}
+Eigen::Vector2d LiveMap::normalize(double x, double y) const { return undistortPixel(K_, x, y, 8); }
 
 LiveMap::Keyframe* LiveMap::keyframe(int64_t seq) {
   if (seq < kf_first_seq_ || seq >= kf_next_seq_) return nullptr;

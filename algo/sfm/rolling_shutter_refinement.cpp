@@ -3,23 +3,11 @@
 #include <cmath>
 
 #include "algo/geometry/triangulation.hpp"
+#include "algo/geometry/undistort.hpp"
 
 namespace epitrack {
 
 namespace {
-
-// Normalized undistorted coordinates of a pixel: the radial model inverted by fixed-point
-// iteration (as the live map does).
-Eigen::Vector2d undistort(const CameraIntrinsics& K, double x, double y) {
-  const Eigen::Vector2d d((x - K.cx) / K.fx, (y - K.cy) / K.fy);
-  if (!K.hasDistortion()) return d;
-  Eigen::Vector2d p = d;
-  for (int i = 0; i < 10; ++i) {
-    const double r2 = p.squaredNorm();
-    p = d / (1.0 + K.k1 * r2 + K.k2 * r2 * r2);
-  }
-  return p;
-}
 
 struct Workspace {
   std::vector<int> point_of_track;
@@ -113,7 +101,7 @@ int intersectPoints(const TrackTable& tracks, const CameraIntrinsics& K,
         continue;
       // Seen on row o.y: the camera as it was when that row was exposed.
       w.poses.push_back(poseAtTime(fr.pose, motion, shutter.rowTime(o.y)));
-      w.normalized.push_back(undistort(K, o.x, o.y));
+      w.normalized.push_back(undistortPixel(K, o.x, o.y));
     }
     if (w.poses.size() < 2) continue;
     const auto t = triangulatePoint(w.poses, w.normalized, to);

@@ -16,7 +16,7 @@ enum class SceneKind {
   kHandheld,   ///< slow sideways walk (5 mm/frame) looking at the boxes, plus seeded shake
   kPlanar,     ///< one textured plane seen from a moving, turning camera
   kShake,      ///< distant room from a slow sideways drift, hand-held jitter of 1-8 Hz and jerks
-  kFastPan,    ///< fast back-and-forth pan (up to ~3.5 deg/frame, reversals) with a small drift
+  kFastPan,    ///< fast back-and-forth pan (up to ~3.5 deg/frame, reversals) while walking sideways
   kOcclusion,  ///< orbit (0.35 deg/frame) around pillars at several depths that cross in the image
 };
 

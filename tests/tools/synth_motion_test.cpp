@@ -299,3 +299,15 @@ TEST_CASE("The occlusion scene occludes far more corners per frame than the orbi
   CHECK(occlusion > 0.005);
   CHECK(occlusion > 4.0 * orbit);
 }
+
+TEST_CASE("--orbit-speed sets the orbit's arc per frame", "[synth][motion]") {
+  synth::TrajectoryParams t;
+  t.kind = synth::SceneKind::kOrbit;
+  t.orbit_speed_deg = 0.75;
+  for (int f = 0; f < 100; f += 9) {
+    const Eigen::Vector3d a = synth::trajectoryPose(t, f).t_wc;
+    const Eigen::Vector3d b = synth::trajectoryPose(t, f + 1).t_wc;
+    const double arc = std::atan2(b.y(), b.x()) - std::atan2(a.y(), a.x());
+    REQUIRE(arc * kRadToDeg == Approx(0.75).epsilon(1e-9));
+  }
+}

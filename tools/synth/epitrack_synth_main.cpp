@@ -77,6 +77,10 @@ int main(int argc, char** argv) {
           "point,\n"
           "      a critical motion for focal self-calibration (default 0)",
           &o.target_wander, 0.0, 10.0);
+  cl.real("orbit-speed", "DEG",
+          "orbit: degrees of arc per frame (default 0.25; 0.75 is the fast orbit of the "
+          "rolling-shutter tests)",
+          &o.orbit_speed_deg, -10.0, 10.0);
   cl.real("shake", "DEG",
           "shake: peak rotational jitter per axis in degrees; the jerks scale with it "
           "(default 2)",
@@ -186,6 +190,9 @@ int main(int argc, char** argv) {
       " --size " + size + " --seed " + std::to_string(seed) +
       (o.kind == synth::SceneKind::kShake ? " --shake " + formatNumber(o.shake_deg)
                                           : std::string()) +
+      (o.kind == synth::SceneKind::kOrbit && o.orbit_speed_deg != 0.25
+           ? " --orbit-speed " + formatNumber(o.orbit_speed_deg)
+           : std::string()) +
       (o.readout > 0.0 ? " --rolling-shutter " + formatNumber(o.readout) +
                              " (frame intervals; each pose is the middle row's)"
                        : std::string());

@@ -47,6 +47,7 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options) : options_(opt
   trajectory_.kind = options.kind;
   trajectory_.frames = options.frames;
   trajectory_.target_wander = options.target_wander;
+  trajectory_.orbit_speed_deg = options.orbit_speed_deg;
   trajectory_.shake_deg = options.shake_deg;
   trajectory_.seed = options.seed;
 }

@@ -20,8 +20,9 @@ struct SynthOptions {
   double blur = 0.0;         ///< exposure in frame intervals (0: none; 1: open the whole interval)
   double k1 = 0.0;           ///< radial distortion
   double k2 = 0.0;
-  double target_wander = 0.0;  ///< orbit: look-at target motion amplitude (m)
-  double shake_deg = 2.0;      ///< shake: peak rotational jitter per axis (degrees)
+  double target_wander = 0.0;     ///< orbit: look-at target motion amplitude (m)
+  double orbit_speed_deg = 0.25;  ///< orbit: degrees of arc per frame
+  double shake_deg = 2.0;         ///< shake: peak rotational jitter per axis (degrees)
   /// Rolling shutter: time from the exposure of the first row to that of the last, in frame
   /// intervals (0: global shutter). The frame's pose (groundtruth.txt) is the middle row's.
   double readout = 0.0;

@@ -147,7 +147,7 @@ Eigen::Vector3d shakeRotation(const TrajectoryParams& params, double t) {
 Pose trajectoryPose(const TrajectoryParams& params, double t) {
   switch (params.kind) {
     case SceneKind::kOrbit: {
-      const double theta = degToRad(-135.0 + 0.25 * t);
+      const double theta = degToRad(-135.0 + params.orbit_speed_deg * t);
       const Eigen::Vector3d eye(6.0 * portableCos(theta), 6.0 * portableSin(theta), 1.7);
       const double a = params.target_wander;
       const Eigen::Vector3d target(a * wave(t, 173.0, 0.3), 0.7 * a * wave(t, 131.0, 1.1),

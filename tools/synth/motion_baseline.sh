@@ -3,7 +3,8 @@
 # epitrack-track (default and --no-kalman, --frame-stats), scores the tracks against the truth
 # (track_accuracy.py), solves with the focal given and self-calibrated (own tracks and the
 # --no-kalman tracks), scores each solve with epitrack-eval, and runs epitrack-device (intrinsics
-# given and self-calibrated). tools/synth/motion_table.py OUT/NAME prints the figures.
+# given and self-calibrated); --whole-window (the device's option set) is tracked and scored too.
+# tools/synth/motion_table.py OUT/NAME prints the figures.
 #
 # usage: tools/synth/motion_baseline.sh BUILD_DIR OUT_DIR NAME [epitrack-synth options...]
 #   e.g. tools/synth/motion_baseline.sh build/test /tmp/baseline shake --scene shake
@@ -19,9 +20,10 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 rm -rf "$C"
 mkdir -p "$C"
 "$B/tools/synth/epitrack-synth" "$@" --frames 200 --size 640x480 --focal 600 --quiet --out "$C" || exit 1
-for v in default nokalman; do
+for v in default nokalman wholewindow; do
   extra=""
   [ $v = nokalman ] && extra="--no-kalman"
+  [ $v = wholewindow ] && extra="--whole-window"
   "$B/tools/track/epitrack-track" "$C/frames" --out "$C/tracks_$v.csv" --frame-stats --quiet $extra \
     2> "$C/track_$v.log"
   python3 "$HERE/track_accuracy.py" "$C/landmarks.txt" "$C/tracks_$v.csv" > "$C/acc_$v.json"

@@ -57,7 +57,7 @@ def main():
         return 2
     for clip in sys.argv[1:]:
         print('==', clip)
-        for v in ['default', 'nokalman']:
+        for v in ['default', 'nokalman', 'wholewindow']:
             g = gate_losses(f'{clip}/track_{v}.log')
             mean, median, long = track_lengths(f'{clip}/tracks_{v}.csv')
             a = load(f'{clip}/acc_{v}.json')

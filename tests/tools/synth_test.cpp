@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 
@@ -439,4 +440,205 @@ TEST_CASE("epitrack-synth rejects bad usage with exit code 2", "[synth][cli]") {
   REQUIRE(epitrack::test::run(exe + " --frames 3 2>/dev/null") == 2);  // --out missing
   REQUIRE(epitrack::test::run(exe + " --bogus 1 --out /tmp/x 2>/dev/null") == 2);
   REQUIRE(epitrack::test::run(exe + " --help >/dev/null") == 0);
+}
+
+TEST_CASE("A rolling-shutter render with readout 0 is the global-shutter render, bit for bit",
+          "[synth][rolling-shutter]") {
+  synth::SynthOptions o;
+  o.width = 240;
+  o.height = 180;
+  o.focal = 210;
+  o.frames = 30;
+  for (const auto kind : {synth::SceneKind::kShake, synth::SceneKind::kOcclusion}) {
+    for (const double k1 : {0.0, -0.15}) {
+      o.kind = kind;
+      o.k1 = k1;
+      const synth::SyntheticSequence seq(o);
+      synth::FrameRenderer renderer(seq);
+      Image<float> global(o.width, o.height);
+      Image<float> rolling(o.width, o.height);
+      renderer.renderRadiance(seq.pose(17), global.view());
+      renderer.renderRadianceRolling(17, 0.0, rolling.view());
+      int differ = 0;
+      for (int y = 0; y < o.height; ++y)
+        for (int x = 0; x < o.width; ++x) differ += global(x, y) != rolling(x, y);
+      INFO(synth::sceneKindName(kind) << " k1 " << k1);
+      REQUIRE(differ == 0);
+      // And a real readout does change the picture (the row path is not a no-op).
+      renderer.renderRadianceRolling(17, 0.9, rolling.view());
+      for (int y = 0; y < o.height; ++y)
+        for (int x = 0; x < o.width; ++x) differ += global(x, y) != rolling(x, y);
+      REQUIRE(differ > o.width * o.height / 4);
+    }
+  }
+}
+
+TEST_CASE("epitrack-synth --rolling-shutter 0 writes the global-shutter clip byte for byte",
+          "[synth][rolling-shutter][cli]") {
+  const std::string exe = epitrack::test::binaryPath("tools/synth/epitrack-synth");
+  epitrack::test::TempDir a("synth-rs0-a");
+  epitrack::test::TempDir b("synth-rs0-b");
+  const std::string args =
+      " --scene shake --frames 4 --size 160x120 --focal 140 --noise 1 --blur 0.5 --quiet --out ";
+  REQUIRE(epitrack::test::run(exe + args + a.path()) == 0);
+  REQUIRE(epitrack::test::run(exe + args + b.path() + " --rolling-shutter 0ms") == 0);
+  const auto bytes = [](const std::string& path) { return epitrack::test::readWholeFile(path); };
+  for (const char* file : {"frames/000000.pgm", "frames/000003.pgm", "groundtruth.txt",
+                           "landmarks.txt", "intrinsics.txt", "points3d.txt"}) {
+    INFO(file);
+    const std::string x = bytes(a.file(file));
+    REQUIRE(x.size() > 100);
+    REQUIRE(x == bytes(b.file(file)));
+  }
+}
+
+TEST_CASE("Rolling-shutter landmarks sit where their row's pose projects them",
+          "[synth][rolling-shutter][landmarks]") {
+  synth::SynthOptions o;
+  o.width = 320;
+  o.height = 240;
+  o.focal = 280;
+  o.frames = 60;
+  o.readout = 0.9;
+  for (const auto kind : {synth::SceneKind::kShake, synth::SceneKind::kFastPan}) {
+    o.kind = kind;
+    const synth::SyntheticSequence seq(o);
+    std::vector<synth::LandmarkObservation> obs;
+    std::vector<double> shifts;
+    double worst = 0.0;
+    for (const int frame : {5, 23, 41}) {
+      seq.visibleLandmarks(frame, obs);
+      REQUIRE(obs.size() > 100);
+      const synth::Pose frame_pose = seq.pose(frame);
+      for (const auto& ob : obs) {
+        const Eigen::Vector3d X = seq.scene().landmarks[static_cast<std::size_t>(ob.id)].position;
+        // Row time by this test's own formula: row 0 at frame - readout/2, the last at +readout/2.
+        const double t = frame + o.readout * (ob.y / (o.height - 1) - 0.5);
+        const synth::Pose p = seq.pose(t);
+        const Eigen::Vector3d pc = p.R_wc.transpose() * (X - p.t_wc);
+        const Eigen::Vector2d px(o.focal * pc.x() / pc.z() + (o.width - 1) * 0.5,
+                                 o.focal * pc.y() / pc.z() + (o.height - 1) * 0.5);
+        worst = std::max(worst, (px - Eigen::Vector2d(ob.x, ob.y)).norm());
+        const Eigen::Vector3d pg = frame_pose.R_wc.transpose() * (X - frame_pose.t_wc);
+        const Eigen::Vector2d gx(o.focal * pg.x() / pg.z() + (o.width - 1) * 0.5,
+                                 o.focal * pg.y() / pg.z() + (o.height - 1) * 0.5);
+        shifts.push_back((gx - px).norm());
+      }
+    }
+    std::sort(shifts.begin(), shifts.end());
+    const double max_shift = shifts.back();
+    std::printf(
+        "rolling shutter %s, readout 0.9: worst |landmark - row-pose projection| %.1e px, "
+        "shift from the global-shutter projection median %.2f px, max %.2f px\n",
+        synth::sceneKindName(kind), worst, shifts[shifts.size() / 2], max_shift);
+    CHECK(worst < 1e-6);
+    // The shear is real: up to half the readout times the image speed at the top and bottom rows.
+    CHECK(max_shift > (kind == synth::SceneKind::kFastPan ? 5.0 : 1.0));
+  }
+}
+
+TEST_CASE("The rolling-shutter render moves each corner as its landmark moves",
+          "[synth][rolling-shutter][render]") {
+  // The fast pan at 0.9 frames of readout shears the image by up to ~6 px at 320x240. The same
+  // corner estimator runs on the rolling-shutter and the global-shutter render of one frame; the
+  // displacement it sees between the two must be the displacement of the true landmarks (the
+  // estimator's own bias on the texture cancels in the difference).
+  synth::SynthOptions o;
+  o.kind = synth::SceneKind::kFastPan;
+  o.width = 320;
+  o.height = 240;
+  o.focal = 280;
+  o.frames = 30;
+  o.readout = 0.9;
+  const synth::SyntheticSequence rolling(o);
+  synth::SynthOptions og = o;
+  og.readout = 0.0;
+  const synth::SyntheticSequence global(og);
+  const int frame = 20;
+  Image<uint8_t> img_rolling;
+  Image<uint8_t> img_global;
+  synth::FrameRenderer(rolling).render(frame, img_rolling);
+  synth::FrameRenderer(global).render(frame, img_global);
+  std::vector<synth::LandmarkObservation> obs;
+  std::vector<synth::LandmarkObservation> obs_global;
+  rolling.visibleLandmarks(frame, obs);
+  global.visibleLandmarks(frame, obs_global);
+  std::map<int, Eigen::Vector2d> global_at;
+  for (const auto& g : obs_global) global_at[g.id] = {g.x, g.y};
+  std::vector<double> disagreement;
+  std::vector<double> shear;
+  for (const auto& ob : obs) {
+    if (!epitrack::test::wellConditioned(
+            global, global.scene().landmarks[static_cast<std::size_t>(ob.id)], frame))
+      continue;
+    const auto g = global_at.find(ob.id);
+    if (g == global_at.end()) continue;
+    const Eigen::Vector2d l_rolling(ob.x, ob.y);
+    Eigen::Vector2d c_rolling;
+    Eigen::Vector2d c_global;
+    if (!refineCorner(img_rolling, l_rolling, 3, c_rolling) ||
+        !refineCorner(img_global, g->second, 3, c_global))
+      continue;
+    disagreement.push_back(((c_rolling - c_global) - (l_rolling - g->second)).norm());
+    shear.push_back((l_rolling - g->second).norm());
+  }
+  REQUIRE(disagreement.size() > 30);
+  std::sort(disagreement.begin(), disagreement.end());
+  std::sort(shear.begin(), shear.end());
+  const double median = disagreement[disagreement.size() / 2];
+  const double p90 = disagreement[disagreement.size() * 9 / 10];
+  const double median_shear = shear[shear.size() / 2];
+  std::printf(
+      "rolling-shutter fast pan: %zu corners moved by the shutter %.2f px (median); "
+      "measured minus true motion: median %.3f px, p90 %.3f px\n",
+      disagreement.size(), median_shear, median, p90);
+  CHECK(median_shear > 1.0);
+  CHECK(median < 0.1);
+  CHECK(p90 < 0.3);
+}
+
+TEST_CASE("Rolling-shutter clips render deterministically (pinned digests)",
+          "[synth][rolling-shutter][determinism]") {
+  synth::SynthOptions o;
+  o.width = 320;
+  o.height = 240;
+  o.focal = 280;
+  o.frames = 10;
+  o.readout = 0.9;
+  const std::pair<synth::SceneKind, uint64_t> pinned[] = {
+      {synth::SceneKind::kShake, 15468179902915071915ull},
+      {synth::SceneKind::kFastPan, 9639003795828941460ull},
+  };
+  for (const auto& [kind, expected] : pinned) {
+    o.kind = kind;
+    const synth::SyntheticSequence seq(o);
+    synth::FrameRenderer r(seq);
+    Image<uint8_t> img;
+    r.render(7, img);
+    uint64_t h = 1469598103934665603ull;
+    for (int y = 0; y < img.height(); ++y)
+      for (int x = 0; x < img.width(); ++x) h = (h ^ img(x, y)) * 1099511628211ull;
+    INFO(synth::sceneKindName(kind) << ": FNV-1a digest " << h);
+    CHECK(h == expected);
+  }
+}
+
+TEST_CASE("epitrack-synth --rolling-shutter takes frame intervals or ms and refuses the rest",
+          "[synth][rolling-shutter][cli]") {
+  const std::string exe = epitrack::test::binaryPath("tools/synth/epitrack-synth");
+  epitrack::test::TempDir dir("synth-rs-cli");
+  REQUIRE(epitrack::test::run(exe +
+                              " --scene fastpan --frames 2 --size 96x72 --focal 80 "
+                              "--rolling-shutter 20ms --fps 25 --quiet --out " +
+                              dir.path()) == 0);
+  std::ifstream gt(dir.file("groundtruth.txt"));
+  std::string header;
+  std::getline(gt, header);
+  INFO(header);
+  CHECK(header.find("--rolling-shutter 0.5 ") != std::string::npos);  // 20 ms at 25 fps
+  for (const char* bad : {"1.5", "-0.1", "abc", "40ms", "ms", "0.5x", "nan"}) {
+    INFO(bad);
+    CHECK(epitrack::test::run(exe + " --scene shake --frames 2 --rolling-shutter " + bad +
+                              " --out " + dir.path() + "/x 2>/dev/null") == 2);
+  }
 }

@@ -1,7 +1,9 @@
 // epitrack-synth: renders a synthetic clip with exact ground truth (ARCHITECTURE.md "Commands").
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -36,6 +38,8 @@ int main(int argc, char** argv) {
   std::string size = "704x576";
   std::string distortion;
   std::string out_dir;
+  std::string rolling_shutter;
+  double fps = 30.0;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   int seed = 1;
   bool quiet = false;
@@ -73,10 +77,25 @@ int main(int argc, char** argv) {
           "point,\n"
           "      a critical motion for focal self-calibration (default 0)",
           &o.target_wander, 0.0, 10.0);
+  cl.real("orbit-speed", "DEG",
+          "orbit: degrees of arc per frame (default 0.25; 0.75 is the fast orbit of the "
+          "rolling-shutter tests)",
+          &o.orbit_speed_deg, -10.0, 10.0);
   cl.real("shake", "DEG",
           "shake: peak rotational jitter per axis in degrees; the jerks scale with it "
           "(default 2)",
           &o.shake_deg, 0.0, 10.0);
+  cl.text("rolling-shutter", "READOUT",
+          "rolling shutter: time from the first row's exposure to the last row's, in frame "
+          "intervals (0.9)\n"
+          "      or milliseconds (30ms, with --fps), at most one frame interval; every row is "
+          "rendered at its own\n"
+          "      pose; groundtruth.txt holds the middle row's pose, landmarks.txt each corner at "
+          "its row's time\n"
+          "      (default 0: global shutter)",
+          &rolling_shutter);
+  cl.real("fps", "F", "frame rate that converts --rolling-shutter in ms (default 30)", &fps, 0.1,
+          10000.0);
   cl.integer("seed", "S", "seed of the scene layout, textures, shake and noise (default 1)", &seed,
              0, 2147483647);
   cl.integer("threads", "N", "rendering threads (default: all cores)", &threads, 1, 256);
@@ -99,6 +118,21 @@ int main(int argc, char** argv) {
     o.k2 = k[1];
   }
   o.seed = static_cast<uint64_t>(seed);
+  if (!rolling_shutter.empty()) {
+    std::string number = rolling_shutter;
+    const bool in_ms = number.size() > 2 && number.compare(number.size() - 2, 2, "ms") == 0;
+    if (in_ms) number.resize(number.size() - 2);
+    char* end = nullptr;
+    const double value = std::strtod(number.c_str(), &end);
+    o.readout = in_ms ? value * fps / 1000.0 : value;
+    if (number.empty() || end != number.c_str() + number.size() || !std::isfinite(value) ||
+        !(o.readout >= 0.0 && o.readout <= 1.0)) {
+      return cl.usageError(
+          "--rolling-shutter: expected a readout of 0-1 frame intervals (0.9) or milliseconds "
+          "up to one frame period (30ms at --fps 30), got '" +
+          rolling_shutter + "'");
+    }
+  }
 
   std::string error;
   if (!hal::makeDirectories(out_dir + "/frames", error)) {
@@ -155,7 +189,13 @@ int main(int argc, char** argv) {
       std::string("epitrack-synth --scene ") + scene + " --frames " + std::to_string(o.frames) +
       " --size " + size + " --seed " + std::to_string(seed) +
       (o.kind == synth::SceneKind::kShake ? " --shake " + formatNumber(o.shake_deg)
-                                          : std::string());
+                                          : std::string()) +
+      (o.kind == synth::SceneKind::kOrbit && o.orbit_speed_deg != 0.25
+           ? " --orbit-speed " + formatNumber(o.orbit_speed_deg)
+           : std::string()) +
+      (o.readout > 0.0 ? " --rolling-shutter " + formatNumber(o.readout) +
+                             " (frame intervals; each pose is the middle row's)"
+                       : std::string());
   std::vector<hal::TrajectoryEntry> traj;
   for (int f = 0; f < o.frames; ++f) {
     const synth::Pose p = seq.pose(f);
@@ -177,7 +217,11 @@ int main(int argc, char** argv) {
     points += buf;
   }
   std::string landmarks =
-      "# frame id x y  (true projection of each visible scene corner, pixels)\n";
+      o.readout > 0.0
+          ? "# frame id x y  (true projection of each visible scene corner at the exposure time "
+            "of its row, pixels; rolling shutter, readout " +
+                formatNumber(o.readout) + " frame intervals)\n"
+          : "# frame id x y  (true projection of each visible scene corner, pixels)\n";
   for (const auto& l : landmark_lines) landmarks += l;
   if (!hal::writeTextAtomic(out_dir + "/groundtruth.txt", hal::formatTrajectory(traj, what),
                             error) ||

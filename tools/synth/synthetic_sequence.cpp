@@ -47,26 +47,48 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options) : options_(opt
   trajectory_.kind = options.kind;
   trajectory_.frames = options.frames;
   trajectory_.target_wander = options.target_wander;
+  trajectory_.orbit_speed_deg = options.orbit_speed_deg;
   trajectory_.shake_deg = options.shake_deg;
   trajectory_.seed = options.seed;
 }
 
 void SyntheticSequence::visibleLandmarks(int frame, std::vector<LandmarkObservation>& out) const {
   out.clear();
-  const Pose p = pose(frame);
-  const Eigen::Matrix3d R_cw = p.R_wc.transpose();
+  const Pose frame_pose = pose(frame);
   std::vector<CameraFrameQuad> quads;
   quads.reserve(scene_.quads.size());
-  for (const auto& q : scene_.quads) quads.push_back(toCamera(q, p));
+  for (const auto& q : scene_.quads) quads.push_back(toCamera(q, frame_pose));
   const double max_x = camera_.width - 1.0;
   const double max_y = camera_.height - 1.0;
+  const double readout = options_.readout;
   for (const Landmark3d& l : scene_.landmarks) {
-    const Eigen::Vector3d pc = R_cw * (l.position - p.t_wc);
+    Pose p = frame_pose;
+    Eigen::Matrix3d R_cw = p.R_wc.transpose();
+    Eigen::Vector3d pc = R_cw * (l.position - p.t_wc);
     if (pc.z() <= kNear) continue;
     Eigen::Vector2d px;
-    if (!camera_.project(pc, px) || px.x() < 0.0 || px.y() < 0.0 || px.x() > max_x ||
-        px.y() > max_y)
-      continue;
+    if (!camera_.project(pc, px)) continue;
+    if (readout > 0.0) {
+      // The row where the corner is seen depends on the pose, which depends on the row: iterate
+      // y <- project_y(pose(rowTime(y))). The map contracts by the vertical image speed times
+      // the readout over the height (well below 1 for any hand-held motion): converges in a few
+      // steps; a corner that does not settle is left out.
+      bool converged = false;
+      for (int iter = 0; iter < 50 && !converged; ++iter) {
+        const double y = px.y();
+        p = pose(rowTime(frame, y, readout));
+        R_cw = p.R_wc.transpose();
+        pc = R_cw * (l.position - p.t_wc);
+        if (pc.z() <= kNear || !camera_.project(pc, px)) break;
+        converged = std::abs(px.y() - y) < 1e-9;
+      }
+      if (!converged) continue;
+    }
+    if (px.x() < 0.0 || px.y() < 0.0 || px.x() > max_x || px.y() > max_y) continue;
+    if (readout > 0.0) {
+      quads.clear();
+      for (const auto& q : scene_.quads) quads.push_back(toCamera(q, p));
+    }
     if (quads[static_cast<std::size_t>(l.quad)].n.dot(pc) >= 0.0) continue;  // seen from behind
     const Eigen::Vector3d r = pc / pc.z();
     bool occluded = false;
@@ -140,9 +162,11 @@ Eigen::Vector3d FrameRenderer::pixelRay(double x, double y) const {
   return {n.x(), n.y(), 1.0};
 }
 
-void FrameRenderer::prepareFrame(const Pose& pose) {
+void FrameRenderer::prepareTiles(const Pose& pose, int tile_row_begin, int tile_row_end) {
   const auto& quads = seq_.scene().quads;
-  for (auto& list : tile_quads_) list.clear();
+  const std::size_t tile_begin = static_cast<std::size_t>(tile_row_begin) * tiles_x_;
+  const std::size_t tile_end = static_cast<std::size_t>(tile_row_end) * tiles_x_;
+  for (std::size_t ti = tile_begin; ti < tile_end; ++ti) tile_quads_[ti].clear();
   for (std::size_t qi = 0; qi < quads.size(); ++qi) {
     const TexturedQuad& q = quads[qi];
     const CameraFrameQuad c = toCamera(q, pose);
@@ -173,7 +197,7 @@ void FrameRenderer::prepareFrame(const Pose& pose) {
       }
     }
     if (kept == 0) continue;
-    for (std::size_t ti = 0; ti < tile_bounds_.size(); ++ti) {
+    for (std::size_t ti = tile_begin; ti < tile_end; ++ti) {
       const Eigen::Vector4d& t = tile_bounds_[ti];
       if (b[0] <= t[2] && b[2] >= t[0] && b[1] <= t[3] && b[3] >= t[1])
         tile_quads_[ti].push_back(static_cast<int>(qi));
@@ -215,83 +239,129 @@ float FrameRenderer::shade(const Hit& hit, const Eigen::Vector3d& r, const Eigen
                                                                                     b);
 }
 
-void FrameRenderer::renderRadiance(const Pose& pose, ImageView<float> out) {
+Eigen::Vector3d FrameRenderer::rayAt(int x, int y) const {
   const CameraModel& cam = seq_.camera();
-  const int w = cam.width;
-  const int h = cam.height;
+  if (ray_table_.empty()) return {(x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0};
+  const Eigen::Vector2d& n = ray_table_[static_cast<std::size_t>(y) * cam.width + x];
+  return {n.x(), n.y(), 1.0};
+}
+
+void FrameRenderer::rayDerivatives(int x, int y, Eigen::Vector3d& dx, Eigen::Vector3d& dy) const {
+  const CameraModel& cam = seq_.camera();
+  if (ray_table_.empty()) {
+    dx = Eigen::Vector3d(1.0 / cam.fx, 0.0, 0.0);
+    dy = Eigen::Vector3d(0.0, 1.0 / cam.fy, 0.0);
+    return;
+  }
+  const int xl = std::max(0, x - 1);
+  const int xr = std::min(cam.width - 1, x + 1);
+  const int yu = std::max(0, y - 1);
+  const int yd = std::min(cam.height - 1, y + 1);
+  dx = (rayAt(xr, y) - rayAt(xl, y)) / static_cast<double>(xr - xl);
+  dy = (rayAt(x, yd) - rayAt(x, yu)) / static_cast<double>(yd - yu);
+}
+
+void FrameRenderer::shadeRow(int y, ImageView<float> out) {
+  const int w = seq_.camera().width;
   const float background = seq_.scene().background;
-  prepareFrame(pose);
-  const bool table = !ray_table_.empty();
-  const auto rayAt = [&](int x, int y) -> Eigen::Vector3d {
-    if (!table) return {(x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0};
-    const Eigen::Vector2d& n = ray_table_[static_cast<std::size_t>(y) * w + x];
-    return {n.x(), n.y(), 1.0};
-  };
-  const auto rayDerivatives = [&](int x, int y, Eigen::Vector3d& dx, Eigen::Vector3d& dy) {
-    if (!table) {
-      dx = Eigen::Vector3d(1.0 / cam.fx, 0.0, 0.0);
-      dy = Eigen::Vector3d(0.0, 1.0 / cam.fy, 0.0);
-      return;
+  float* row = out.row(y);
+  const std::vector<int>* tile_row =
+      &tile_quads_[static_cast<std::size_t>(y / kRenderTile) * tiles_x_];
+  for (int x = 0; x < w; ++x) {
+    const Eigen::Vector3d r = rayAt(x, y);
+    const Hit hit = castRay(r, tile_row[x / kRenderTile]);
+    ids_[static_cast<std::size_t>(y) * w + x] = static_cast<int16_t>(hit.quad);
+    if (hit.quad < 0) {
+      row[x] = background;
+    } else {
+      Eigen::Vector3d dx;
+      Eigen::Vector3d dy;
+      rayDerivatives(x, y, dx, dy);
+      row[x] = shade(hit, r, dx, dy);
     }
-    const int xl = std::max(0, x - 1);
-    const int xr = std::min(w - 1, x + 1);
-    const int yu = std::max(0, y - 1);
-    const int yd = std::min(h - 1, y + 1);
-    dx = (rayAt(xr, y) - rayAt(xl, y)) / static_cast<double>(xr - xl);
-    dy = (rayAt(x, yd) - rayAt(x, yu)) / static_cast<double>(yd - yu);
-  };
-  // Pass 1: one ray per pixel centre, box-filtered texture.
-  for (int y = 0; y < h; ++y) {
-    float* row = out.row(y);
-    const std::vector<int>* tile_row =
-        &tile_quads_[static_cast<std::size_t>(y / kRenderTile) * tiles_x_];
-    for (int x = 0; x < w; ++x) {
-      const Eigen::Vector3d r = rayAt(x, y);
-      const Hit hit = castRay(r, tile_row[x / kRenderTile]);
-      ids_[static_cast<std::size_t>(y) * w + x] = static_cast<int16_t>(hit.quad);
-      if (hit.quad < 0) {
-        row[x] = background;
-      } else {
-        Eigen::Vector3d dx;
-        Eigen::Vector3d dy;
-        rayDerivatives(x, y, dx, dy);
-        row[x] = shade(hit, r, dx, dy);
+  }
+}
+
+bool FrameRenderer::rowHasEdge(int y) const {
+  const int w = seq_.camera().width;
+  const int h = seq_.camera().height;
+  for (int x = 0; x < w; ++x) {
+    const int16_t id = ids_[static_cast<std::size_t>(y) * w + x];
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = x + dx;
+        const int ny = y + dy;
+        if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+        if (ids_[static_cast<std::size_t>(ny) * w + nx] != id) return true;
       }
     }
   }
-  // Pass 2: pixels next to a change of surface are supersampled 4x4.
-  for (int y = 0; y < h; ++y) {
-    const std::vector<int>* tile_row =
-        &tile_quads_[static_cast<std::size_t>(y / kRenderTile) * tiles_x_];
-    for (int x = 0; x < w; ++x) {
-      const int16_t id = ids_[static_cast<std::size_t>(y) * w + x];
-      bool edge = false;
-      for (int dy = -1; dy <= 1 && !edge; ++dy) {
-        for (int dx = -1; dx <= 1 && !edge; ++dx) {
-          const int nx = x + dx;
-          const int ny = y + dy;
-          if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
-          edge = ids_[static_cast<std::size_t>(ny) * w + nx] != id;
-        }
+  return false;
+}
+
+void FrameRenderer::supersampleRow(int y, ImageView<float> out) {
+  const int w = seq_.camera().width;
+  const int h = seq_.camera().height;
+  const float background = seq_.scene().background;
+  const std::vector<int>* tile_row =
+      &tile_quads_[static_cast<std::size_t>(y / kRenderTile) * tiles_x_];
+  for (int x = 0; x < w; ++x) {
+    const int16_t id = ids_[static_cast<std::size_t>(y) * w + x];
+    bool edge = false;
+    for (int dy = -1; dy <= 1 && !edge; ++dy) {
+      for (int dx = -1; dx <= 1 && !edge; ++dx) {
+        const int nx = x + dx;
+        const int ny = y + dy;
+        if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+        edge = ids_[static_cast<std::size_t>(ny) * w + nx] != id;
       }
-      if (!edge) continue;
-      Eigen::Vector3d drx;
-      Eigen::Vector3d dry;
-      rayDerivatives(x, y, drx, dry);
-      drx *= 0.25;
-      dry *= 0.25;
-      double sum = 0.0;
-      for (int sy = 0; sy < 4; ++sy) {
-        for (int sx = 0; sx < 4; ++sx) {
-          const Eigen::Vector3d r =
-              pixelRay(x + (sx + 0.5) * 0.25 - 0.5, y + (sy + 0.5) * 0.25 - 0.5);
-          const Hit hit = castRay(r, tile_row[x / kRenderTile]);
-          sum += hit.quad < 0 ? static_cast<double>(background)
-                              : static_cast<double>(shade(hit, r, drx, dry));
-        }
-      }
-      out(x, y) = static_cast<float>(sum / 16.0);
     }
+    if (!edge) continue;
+    Eigen::Vector3d drx;
+    Eigen::Vector3d dry;
+    rayDerivatives(x, y, drx, dry);
+    drx *= 0.25;
+    dry *= 0.25;
+    double sum = 0.0;
+    for (int sy = 0; sy < 4; ++sy) {
+      for (int sx = 0; sx < 4; ++sx) {
+        const Eigen::Vector3d r =
+            pixelRay(x + (sx + 0.5) * 0.25 - 0.5, y + (sy + 0.5) * 0.25 - 0.5);
+        const Hit hit = castRay(r, tile_row[x / kRenderTile]);
+        sum += hit.quad < 0 ? static_cast<double>(background)
+                            : static_cast<double>(shade(hit, r, drx, dry));
+      }
+    }
+    out(x, y) = static_cast<float>(sum / 16.0);
+  }
+}
+
+void FrameRenderer::renderRadiance(const Pose& pose, ImageView<float> out) {
+  const int h = seq_.camera().height;
+  prepareTiles(pose, 0, tiles_y_);
+  // Pass 1: one ray per pixel centre, box-filtered texture.
+  for (int y = 0; y < h; ++y) shadeRow(y, out);
+  // Pass 2: pixels next to a change of surface are supersampled 4x4.
+  for (int y = 0; y < h; ++y) supersampleRow(y, out);
+}
+
+void FrameRenderer::renderRadianceRolling(double frame_time, double readout, ImageView<float> out) {
+  const int h = seq_.camera().height;
+  // Each row at its own pose (exact from the trajectory): the scene is brought into that row's
+  // camera frame and culled for the row's band of tiles only. With readout 0 every row gets the
+  // frame's pose and the same candidate lists, hence exactly renderRadiance's bytes.
+  const auto prepareRow = [&](int y) {
+    const int tile_row = y / kRenderTile;
+    prepareTiles(seq_.pose(seq_.rowTime(frame_time, y, readout)), tile_row, tile_row + 1);
+  };
+  for (int y = 0; y < h; ++y) {
+    prepareRow(y);
+    shadeRow(y, out);
+  }
+  for (int y = 0; y < h; ++y) {
+    if (!rowHasEdge(y)) continue;
+    prepareRow(y);
+    supersampleRow(y, out);
   }
 }
 
@@ -305,7 +375,11 @@ void FrameRenderer::render(int frame, Image<uint8_t>& out) {
     accum_.fill(0.0F);
     for (int s = 0; s < k; ++s) {
       const double t = frame + o.blur * ((s + 0.5) / k - 0.5);
-      renderRadiance(seq_.pose(t), radiance_.view());
+      if (o.readout > 0.0) {
+        renderRadianceRolling(t, o.readout, radiance_.view());
+      } else {
+        renderRadiance(seq_.pose(t), radiance_.view());
+      }
       for (int y = 0; y < h; ++y) {
         float* a = accum_.row(y);
         const float* r = radiance_.row(y);
@@ -318,7 +392,11 @@ void FrameRenderer::render(int frame, Image<uint8_t>& out) {
       for (int x = 0; x < w; ++x) a[x] *= inv;
     }
   } else {
-    renderRadiance(seq_.pose(frame), accum_.view());
+    if (o.readout > 0.0) {
+      renderRadianceRolling(frame, o.readout, accum_.view());
+    } else {
+      renderRadiance(seq_.pose(frame), accum_.view());
+    }
   }
   SplitMix64 rng(mixSeed(o.seed, 1000003ull + static_cast<uint64_t>(frame)));
   for (int y = 0; y < h; ++y) {

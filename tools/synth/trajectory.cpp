@@ -147,7 +147,7 @@ Eigen::Vector3d shakeRotation(const TrajectoryParams& params, double t) {
 Pose trajectoryPose(const TrajectoryParams& params, double t) {
   switch (params.kind) {
     case SceneKind::kOrbit: {
-      const double theta = degToRad(-135.0 + 0.25 * t);
+      const double theta = degToRad(-135.0 + params.orbit_speed_deg * t);
       const Eigen::Vector3d eye(6.0 * portableCos(theta), 6.0 * portableSin(theta), 1.7);
       const double a = params.target_wander;
       const Eigen::Vector3d target(a * wave(t, 173.0, 0.3), 0.7 * a * wave(t, 131.0, 1.1),
@@ -206,8 +206,9 @@ Pose trajectoryPose(const TrajectoryParams& params, double t) {
     case SceneKind::kFastPan: {
       // Yaw = A (sin x - sin 3x / 9), x = 2 pi t / 150: a nearly constant angular speed of
       // 2.5-3.5 deg/frame over most of each sweep and a reversal every 75 frames (2.5 s at 30 fps).
-      // The centre drifts 4 mm/frame sideways, so this is not a pure rotation.
-      const Eigen::Vector3d eye(-0.4 + 0.004 * t, -6.0 + 0.0015 * t,
+      // The centre walks 1.2 cm/frame sideways (2.4 m over 200 frames): enough parallax on the
+      // boxes and walls for a full 6-DoF solve, so the clip is a fast pan, not a tripod shot.
+      const Eigen::Vector3d eye(-1.2 + 0.012 * t, -6.0 + 0.004 * t,
                                 1.6 + 0.02 * wave(t, 37.0, 0.3));
       const double x = 2.0 * kPi * t / 150.0;
       const double yaw = degToRad(88.0 * (portableSin(x) - portableSin(3.0 * x) / 9.0));

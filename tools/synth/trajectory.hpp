@@ -10,13 +10,13 @@ namespace epitrack::synth {
 
 /// The named camera motions of `epitrack-synth --scene`.
 enum class SceneKind {
-  kOrbit,      ///< arc around a look-at target (0.25 deg/frame, radius 6 m); the target may wander
+  kOrbit,      ///< arc of radius 6 m around a look-at target (which may wander), 0.25 deg/frame
   kDolly,      ///< forward motion towards a wall (<= 1.5 cm/frame), looking at a fixed far point
   kPan,        ///< pure rotation about the camera centre (yaw +-30 deg, slight tilt)
   kHandheld,   ///< slow sideways walk (5 mm/frame) looking at the boxes, plus seeded shake
   kPlanar,     ///< one textured plane seen from a moving, turning camera
   kShake,      ///< distant room from a slow sideways drift, hand-held jitter of 1-8 Hz and jerks
-  kFastPan,    ///< fast back-and-forth pan (up to ~3.5 deg/frame, reversals) with a small drift
+  kFastPan,    ///< fast back-and-forth pan (up to ~3.5 deg/frame, reversals) while walking sideways
   kOcclusion,  ///< orbit (0.35 deg/frame) around pillars at several depths that cross in the image
 };
 
@@ -35,8 +35,9 @@ Pose lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
 struct TrajectoryParams {
   SceneKind kind = SceneKind::kOrbit;
   int frames = 100;
-  double target_wander = 0.0;  ///< orbit only: amplitude (m) of the look-at target's motion
-  double shake_deg = 2.0;      ///< shake only: peak rotational jitter (degrees), jerks scale too
+  double target_wander = 0.0;     ///< orbit only: amplitude (m) of the look-at target's motion
+  double orbit_speed_deg = 0.25;  ///< orbit only: degrees of arc per frame
+  double shake_deg = 2.0;         ///< shake only: peak rotational jitter (degrees), jerks scale too
   uint64_t seed = 1;
 };
 

@@ -290,11 +290,17 @@ int main(int argc, char** argv) {
       stats.dropped += frame.index - last_index - 1;
     last_index = frame.index;
     // Every captured frame is recorded, also those processing has to drop: the recording
-    // replays what the camera gave.
-    if (!config.record.empty() && !recorder.write(frame, error)) {
-      std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
-      exit_code = 1;
-      break;
+    // replays what the camera gave. The pose line names the frame's number in the recording
+    // (record_frame), since the source's numbers (a driver's sequence) can have gaps and the
+    // dropped frames are in the recording but have no pose line.
+    int64_t record_frame = -1;
+    if (!config.record.empty()) {
+      if (!recorder.write(frame, error)) {
+        std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
+        exit_code = 1;
+        break;
+      }
+      record_frame = recorder.framesWritten() - 1;
     }
     if (pace) {
       // Processing lags when this frame is more than one period older than the clock says the
@@ -340,9 +346,10 @@ int main(int argc, char** argv) {
     }
     if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
     const int n = epitrack::device::formatPoseLine(
-        line, sizeof(line), frame.index, frame.timestamp_s, result.map.status, result.features,
-        result.map.pose, result.ms, result.map.init);
-    if (n > 0) std::fwrite(line, 1, static_cast<std::size_t>(n), out);
+        line, sizeof(line), frame.index, record_frame, frame.timestamp_s, result.map.status,
+        result.features, result.map.pose, result.ms, result.map.init);
+    if (n > 0 && static_cast<std::size_t>(n) < sizeof(line))
+      std::fwrite(line, 1, static_cast<std::size_t>(n), out);
   }
 
   // ---- final statistics (also after SIGINT/SIGTERM) ----

@@ -5,6 +5,7 @@
 
 #include "algo/core/assert.hpp"
 #include "algo/geometry/triangulation.hpp"
+#include "algo/geometry/two_view_model_selection.hpp"
 #include "algo/math/median.hpp"
 #include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/reprojection.hpp"
@@ -58,7 +59,8 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
       pnp_(std::max(4, options.max_features)),
       ba_(options.ba_window + options.ba_fixed, options.max_points,
           (options.ba_window + options.ba_fixed) * options.max_features),
-      homography_(std::max(8, options.max_features)) {
+      homography_(std::max(8, options.max_features)),
+      essential_(std::max(8, options.max_features)) {
   EPITRACK_ASSERT(options.max_features > 0 && options.max_points > 0);
   EPITRACK_ASSERT(options.max_keyframes >= 2 && options.ba_window >= 2);
   EPITRACK_ASSERT(options.ba_window + options.ba_fixed <= options.max_keyframes);
@@ -353,6 +355,38 @@ bool LiveMap::calibrateStep() {
 // ---------------------------------------------------------------------------------------------
 // Initialisation from two views (paper §5.1-5.3).
 
+// A plane (a floor, a wall, a table top filling the view) does not define F: every F of a
+// two-parameter family fits the matches, RANSAC returns one at random, and E = K^T F K gives a
+// wrong relative pose that the map then keeps, consistently and silently (a rendered floor gave
+// 18 degrees of rotation for 3). So the pair's model is selected first (GRIC, as the offline
+// solver): where H explains the matches, the relative pose comes from the five-point E-RANSAC on
+// the normalized matches instead, which the known intrinsics make well-posed for a plane too
+// (Nister 2004); a pure rotation then fails the parallax test and the map keeps waiting.
+// `F`/`mask` are replaced by the essential matrix's F = K^-T E K^-1 and inliers. False: no model.
+bool LiveMap::initialPairModel(std::span<const Eigen::Vector2d> x1,
+                               std::span<const Eigen::Vector2d> x2,
+                               std::span<const Eigen::Vector2d> n1,
+                               std::span<const Eigen::Vector2d> n2, const Eigen::Matrix3d& K,
+                               const FundamentalResult& fr, Eigen::Matrix3d& F,
+                               std::span<const uint8_t>& mask) {
+  HomographyOptions ho;
+  ho.ransac.seed = options_.seed + static_cast<uint64_t>(frame_);
+  HomographyResult hr;
+  if (homography_.estimate(x1, x2, ho, hr) != HomographyRansac::Status::kOk) return true;
+  const auto sel = selectTwoViewModel(fr.F, hr.H, x1, x2, 0.5, fr.mask, hr.mask);
+  if (sel.model == TwoViewModel::kFundamental) return true;
+  EssentialRansacOptions eo;
+  eo.focal_px = K_.fx;
+  eo.ransac.seed = options_.seed + static_cast<uint64_t>(frame_);
+  EssentialRansacResult er;
+  if (essential_.estimate(n1, n2, eo, er) != EssentialRansac::Status::kOk) return false;
+  if (er.inliers < options_.init_min_points) return false;
+  const Eigen::Matrix3d K_inv = K.inverse();
+  F = K_inv.transpose() * er.E * K_inv;
+  mask = er.mask;
+  return true;
+}
+
 bool LiveMap::tryInitialize(LiveFrameResult& result) {
   LiveInitProgress& progress = result.init;
   if (ref_frame_ < 0 || frame_ - ref_frame_ > options_.init_max_gap) {
@@ -400,13 +434,16 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
   if (fr.inliers < options_.init_min_points) return false;
   Eigen::Matrix3d K;
   K << K_.fx, 0, K_.cx, 0, K_.fy, K_.cy, 0, 0, 1;
+  Eigen::Matrix3d F = fr.F;
+  std::span<const uint8_t> mask = fr.mask;
+  if (!initialPairModel(x1, x2, n1, n2, K, fr, F, mask)) return false;
   TwoViewOptions tv;
   tv.focal_px = K_.fx;
   tv.min_point_parallax_deg = options_.min_point_parallax_deg;
   tv.reproj_threshold_px = options_.reproj_threshold_px;
   PoseCw pose;
   int good = 0;
-  if (reconstructTwoView(fr.F, K, n1, n2, fr.mask, tv, pose, std::span(X_.data(), nc),
+  if (reconstructTwoView(F, K, n1, n2, mask, tv, pose, std::span(X_.data(), nc),
                          std::span(accepted_.data(), nc), std::span(scratch_.data(), nc),
                          good) != TwoViewStatus::kOk)
     return false;

@@ -9,6 +9,7 @@
 
 #include "algo/geometry/camera_intrinsics.hpp"
 #include "algo/geometry/essential.hpp"
+#include "algo/geometry/essential_five_point.hpp"
 #include "algo/geometry/focal_self_calibration.hpp"
 #include "algo/geometry/fundamental.hpp"
 #include "algo/geometry/homography.hpp"
@@ -188,6 +189,11 @@ class LiveMap {
   bool calibrateStep();
   [[nodiscard]] Eigen::Vector2d normalize(double x, double y) const;
   void setReference();
+  /// The initial pair's F, or E from five points where the matches are a plane's (see .cpp).
+  bool initialPairModel(std::span<const Eigen::Vector2d> x1, std::span<const Eigen::Vector2d> x2,
+                        std::span<const Eigen::Vector2d> n1, std::span<const Eigen::Vector2d> n2,
+                        const Eigen::Matrix3d& K, const FundamentalResult& fr, Eigen::Matrix3d& F,
+                        std::span<const uint8_t>& mask);
   bool tryInitialize(LiveFrameResult& result);
   bool trackFrame(LiveFrameResult& result);
   void robustRefine(std::size_t matches, PnpResult& pr);
@@ -247,6 +253,7 @@ class LiveMap {
     int count = 0;
   };
   HomographyRansac homography_;
+  EssentialRansac essential_;  // the initial pair of a plane (see initialPairModel)
   std::vector<CalibReference> calib_refs_;
   std::vector<int32_t> calib_ids_;         // calib_references x max_features
   std::vector<Eigen::Vector2d> calib_px_;  // calib_references x max_features

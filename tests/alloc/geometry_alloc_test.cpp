@@ -8,6 +8,7 @@
 #include "algo/geometry/fundamental.hpp"
 #include "algo/geometry/homography.hpp"
 #include "algo/geometry/pnp.hpp"
+#include "algo/geometry/rolling_shutter.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "tests/alloc/counting_allocator.hpp"
 #include "tests/geometry/two_view_scene.hpp"
@@ -174,4 +175,34 @@ TEST_CASE("Multi-pair focal self-calibration allocates nothing", "[alloc][geomet
   CHECK(allocs == 0);
   REQUIRE(r.observable);
   CHECK(r.focal_px == Approx(500.0).epsilon(0.02));
+}
+
+TEST_CASE("the rolling-shutter projection and resection allocate nothing", "[alloc][geometry]") {
+  CameraIntrinsics k = CameraIntrinsics::centered(640, 480, 600.0);
+  const RollingShutter rs = RollingShutter::fromReadout(0.9, 480, 239.5);
+  PoseCw truth;
+  truth.t_cw = Eigen::Vector3d(0.1, 0.0, 4.0);
+  RollingShutterMotion motion;
+  motion.angular = Eigen::Vector3d(0.0, 0.05, 0.01);
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> observed;
+  for (int i = 0; i < 100; ++i) {
+    const double x = -1.5 + 0.03 * i;
+    const double y = -1.0 + 0.02 * ((i * 37) % 100);
+    const double z = (i % 7) * 0.3;
+    X.emplace_back(x, y, z);
+    observed.push_back(projectRollingShutter(k, rs, truth, motion, X.back()).px);
+  }
+  PoseCw pose = truth;
+  pose.t_cw.x() += 0.05;
+  RollingShutterMotion estimated;
+  RollingShutterResectionResult result;
+  std::size_t allocations = 0;
+  {
+    AllocationScope scope;
+    result = refineRollingShutterPose(k, rs, X, observed, pose, estimated);
+    allocations = scope.count();
+  }
+  CHECK(allocations == 0);
+  CHECK(result.rms_px < 1e-3);  // noise-free: the refinement reaches the truth
 }

@@ -126,11 +126,11 @@ TEST_CASE("report has every section with balanced markup", "[render][report]") {
   options.object_at = Eigen::Vector3d(0.25, -0.5, 0.0);
   const std::string html = formatReportHtml(rec, options);
 
-  for (const char* id :
-       {"summary", "reprojection", "features", "track-lengths", "focal", "top-view", "augmented"})
+  for (const char* id : {"summary", "reprojection", "features", "track-lengths", "focal",
+                         "top-view", "scene-frame", "augmented"})
     CHECK(html.find(std::string("<section id=\"") + id + "\"") != std::string::npos);
-  for (const char* id :
-       {"plot-reprojection", "plot-features", "plot-track-lengths", "plot-focal", "plot-top-view"})
+  for (const char* id : {"plot-reprojection", "plot-features", "plot-track-lengths", "plot-focal",
+                         "plot-top-view", "plot-side-view"})
     CHECK(html.find(std::string("<svg id=\"") + id + "\"") != std::string::npos);
 
   CHECK(html.rfind("<!DOCTYPE html>", 0) == 0);
@@ -141,7 +141,7 @@ TEST_CASE("report has every section with balanced markup", "[render][report]") {
     CHECK(openTags(html, tag) == countOf(html, std::string("</") + tag + ">"));
   }
   CHECK(openTags(html, "html") == 1);
-  CHECK(openTags(html, "section") == 7);
+  CHECK(openTags(html, "section") == 8);
   // No script, no remote resource: self-contained.
   CHECK(html.find("<script") == std::string::npos);
   CHECK(html.find("http://") == html.find("http://www.w3.org/2000/svg"));
@@ -290,15 +290,16 @@ TEST_CASE("report renders in headless Chromium", "[render][report][browser]") {
   }
   REQUIRE(epitrack::render::writeReportHtml(rec, options, dir.file("report.html"), error));
 
-  // The DOM as Chromium parsed it keeps every section and plot (nothing swallowed by bad markup).
+  // The DOM as Chromium parsed it keeps every section and plot (nothing swallowed by bad markup):
+  // 8 sections, 6 plots (the side view with them: the fixture has a ground plane).
   const std::string flags = " --headless --no-sandbox --disable-gpu --hide-scrollbars";
   const std::string dom_cmd = browser + flags + " --dump-dom 'file://" + dir.file("report.html") +
                               "' > '" + dir.file("dom.html") + "' 2>/dev/null";
   REQUIRE(epitrack::test::run(dom_cmd) == 0);
   std::string dom;
   REQUIRE(epitrack::hal::readTextFile(dir.file("dom.html"), dom, error));
-  CHECK(openTags(dom, "section") == 7);
-  CHECK(openTags(dom, "svg") == 5);
+  CHECK(openTags(dom, "section") == 8);
+  CHECK(openTags(dom, "svg") == 6);
   CHECK(openTags(dom, "img") == 6);
 
   const std::string shot_cmd = browser + flags + " --window-size=1200,3000 --screenshot='" +
@@ -323,4 +324,61 @@ TEST_CASE("report renders in headless Chromium", "[render][report][browser]") {
     const std::string copy = std::string("cp '") + dir.file("report.png") + "' '" + keep + "'";
     CHECK(epitrack::test::run(copy) == 0);
   }
+}
+
+TEST_CASE("report's scene frame shows the ground, up and the object, and warns when weak",
+          "[render][report]") {
+  Reconstruction rec = makeReconstruction();
+  rec.up_confidence = 0.97;
+  rec.up_spread_deg = 4.0;
+  rec.object.at = Eigen::Vector3d(0.25, -0.5, 0.0);
+  rec.object.scale = 0.5;
+  rec.object.height = 0.3;
+  rec.object.solved_frames = 38;
+  rec.object.visible_frames = 38;
+  rec.object.upright_cosine_median = 0.98;
+  ReportOptions options;
+  options.has_object = true;
+  options.render_object = "towers";
+  options.object_at = rec.object.at;
+  options.scene_frame_image = "scene_frame.jpg";
+  options.scene_frame_index = 19;
+  std::string html = formatReportHtml(rec, options);
+
+  // The side view: the ground at z = 0, up = +z, every solved camera's height, the object standing
+  // on the ground with its height (u: its coordinate along the view's horizontal axis).
+  CHECK(seriesValues(html, "ground") == std::vector<double>{0.0});
+  CHECK(seriesValues(html, "up") == std::vector<double>{0.0, 0.0, 1.0});
+  const auto heights = seriesValues(html, "camera_height");
+  REQUIRE(heights.size() == 38);
+  for (const double z : heights) CHECK(z == Approx(1.2));
+  const auto object = seriesValues(html, "object");  // top view's first: (x, y)
+  CHECK(object == std::vector<double>{0.25, -0.5});
+  const auto side_section = html.substr(html.find("<section id=\"scene-frame\""));
+  const auto side_object = seriesValues(side_section, "object");
+  REQUIRE(side_object.size() == 3);
+  CHECK(side_object[1] == 0.0);
+  CHECK(side_object[2] == Approx(0.3));
+  CHECK(side_section.find("src=\"scene_frame.jpg\"") != std::string::npos);
+  CHECK(side_section.find("Frame 19 ") != std::string::npos);
+  CHECK(side_section.find("class=\"warn\"") == std::string::npos);
+
+  // Weak up, a hidden object, an object on its side: one warning each.
+  rec.up_confidence = 0.55;
+  rec.object.visible_frames = 10;
+  rec.object.upright_cosine_median = 0.1;
+  html = formatReportHtml(rec, options);
+  CHECK(countOf(html, "<p class=\"warn\">") == 3);
+  CHECK(html.find("confidence 0.55") != std::string::npos);
+  CHECK(html.find("only 10 of 38 frames") != std::string::npos);
+
+  // No ground: no side view, and a warning that says what the frame is instead.
+  rec.ground = "none";
+  rec.up_confidence = std::nan("");
+  rec.object.visible_frames = 38;
+  rec.object.upright_cosine_median = 0.95;
+  html = formatReportHtml(rec, options);
+  CHECK(html.find("plot-side-view") == std::string::npos);
+  CHECK(countOf(html, "<p class=\"warn\">") == 1);
+  CHECK(html.find("No ground") != std::string::npos);
 }

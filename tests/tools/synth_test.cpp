@@ -126,7 +126,8 @@ TEST_CASE("Each visible landmark projects onto a corner of the rendered texture"
   o.focal = 280;
   o.frames = 100;
   for (const auto kind :
-       {synth::SceneKind::kOrbit, synth::SceneKind::kPlanar, synth::SceneKind::kHandheld}) {
+       {synth::SceneKind::kOrbit, synth::SceneKind::kPlanar, synth::SceneKind::kHandheld,
+        synth::SceneKind::kShake, synth::SceneKind::kFastPan, synth::SceneKind::kOcclusion}) {
     for (const double k1 : {0.0, -0.15}) {
       o.kind = kind;
       o.k1 = k1;
@@ -365,7 +366,8 @@ TEST_CASE("Trajectories have the documented shape", "[synth][trajectory]") {
   }
   SECTION("rotations are orthonormal") {
     for (auto k : {synth::SceneKind::kOrbit, synth::SceneKind::kDolly, synth::SceneKind::kPan,
-                   synth::SceneKind::kHandheld, synth::SceneKind::kPlanar}) {
+                   synth::SceneKind::kHandheld, synth::SceneKind::kPlanar, synth::SceneKind::kShake,
+                   synth::SceneKind::kFastPan, synth::SceneKind::kOcclusion}) {
       t.kind = k;
       for (int f = 0; f < 340; f += 31) {
         const Eigen::Matrix3d R = synth::trajectoryPose(t, f).R_wc;

@@ -2,7 +2,7 @@
 // essential, triangulation, PnP) on seeded synthetic scenes with known geometry, against the
 // OpenCV equivalents on the same data in the same run when the comparison is built.
 //
-// Every scene is the tests' two-view generator (tests/geometry/two_view_scene.hpp, header-only):
+// Every scene is the tests' two-view generator (tools/synth/two_view_scene.hpp, header-only):
 // `--points` correspondences with `--noise` px Gaussian noise, `--outliers` of them replaced by
 // random pixels in view 2. F, E and triangulation use the general two-view scene; H a tilted plane
 // seen from the same kind of camera pair; PnP the 3D points of the general scene against their
@@ -21,9 +21,9 @@
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/pose.hpp"
 #include "algo/geometry/triangulation.hpp"
-#include "tests/geometry/two_view_scene.hpp"
 #include "tools/bench/bench_registry.hpp"
 #include "tools/common/command_line.hpp"
+#include "tools/synth/two_view_scene.hpp"
 
 #ifdef EPITRACK_HAVE_OPENCV
 #include <opencv2/calib3d.hpp>
@@ -33,9 +33,9 @@
 namespace epitrack::bench {
 namespace {
 
-using test::makeTwoViewScene;
-using test::Motion;
-using test::TwoViewScene;
+using scenes::makeTwoViewScene;
+using scenes::Motion;
+using scenes::TwoViewScene;
 
 /// Per-scene accuracy figures of one implementation of one solver; printed as medians (and the
 /// worst scene where that matters) over the scenes.
@@ -130,8 +130,8 @@ void poseErrorFromF(const TwoViewScene& s, const Eigen::Matrix3d& F,
   }
   RelativePoseResult rp;
   if (!recoverRelativePose(essentialFromFundamental(F, s.K(), s.K()), n1, n2, mask, rp)) return;
-  a.rot_err_deg.push_back(test::rotationErrorDeg(rp.pose.R_cw, s.cam2.R_cw));
-  a.t_err_deg.push_back(test::directionErrorDeg(rp.pose.t_cw, s.cam2.t_cw));
+  a.rot_err_deg.push_back(scenes::rotationErrorDeg(rp.pose.R_cw, s.cam2.R_cw));
+  a.t_err_deg.push_back(scenes::directionErrorDeg(rp.pose.t_cw, s.cam2.t_cw));
 }
 
 double reprojRmsOnTrueInliers(const TwoViewScene& s, const PoseCw& pose) {
@@ -158,7 +158,7 @@ double medianDepth(const TwoViewScene& s, const PoseCw& pose) {
 
 void poseAccuracy(const TwoViewScene& s, const PoseCw& pose, const std::vector<uint8_t>& mask,
                   Accuracy& a) {
-  a.rot_err_deg.push_back(test::rotationErrorDeg(pose.R_cw, s.cam2.R_cw));
+  a.rot_err_deg.push_back(scenes::rotationErrorDeg(pose.R_cw, s.cam2.R_cw));
   // PnP: the extra figure is the camera-centre error in percent of the median scene depth.
   a.extra.push_back((pose.centre() - s.cam2.centre()).norm() / medianDepth(s, s.cam2) * 100.0);
   a.rms_px.push_back(reprojRmsOnTrueInliers(s, pose));
@@ -402,8 +402,8 @@ int runGeometry(int argc, const char* const* argv) {
       if (timed) rec_e.ms_epitrack.push_back(sw.ms());
       if (!timed) {
         if (e_ok) {
-          rec_e.epitrack.rot_err_deg.push_back(test::rotationErrorDeg(rp.pose.R_cw, s.cam2.R_cw));
-          rec_e.epitrack.t_err_deg.push_back(test::directionErrorDeg(rp.pose.t_cw, s.cam2.t_cw));
+          rec_e.epitrack.rot_err_deg.push_back(scenes::rotationErrorDeg(rp.pose.R_cw, s.cam2.R_cw));
+          rec_e.epitrack.t_err_deg.push_back(scenes::directionErrorDeg(rp.pose.t_cw, s.cam2.t_cw));
           countInliers(s, std::vector<uint8_t>(er.mask.begin(), er.mask.end()), rec_e.epitrack);
         } else {
           ++rec_e.epitrack.failures;
@@ -532,8 +532,8 @@ int runGeometry(int argc, const char* const* argv) {
           if (good > 0) {
             Eigen::Matrix3d Re = toEigen3(R);
             const Eigen::Vector3d te(t.at<double>(0), t.at<double>(1), t.at<double>(2));
-            rec_e.opencv.rot_err_deg.push_back(test::rotationErrorDeg(Re, s.cam2.R_cw));
-            rec_e.opencv.t_err_deg.push_back(test::directionErrorDeg(te, s.cam2.t_cw));
+            rec_e.opencv.rot_err_deg.push_back(scenes::rotationErrorDeg(Re, s.cam2.R_cw));
+            rec_e.opencv.t_err_deg.push_back(scenes::directionErrorDeg(te, s.cam2.t_cw));
             countInliers(s, maskOf(mask, n), rec_e.opencv);
           } else {
             ++rec_e.opencv.failures;

@@ -309,6 +309,26 @@ void append(Mesh& dst, const Mesh& src) {
     dst.triangles.emplace_back(t + Eigen::Vector3i::Constant(base));
   dst.colors.insert(dst.colors.end(), src.colors.begin(), src.colors.end());
 }
+
+// A square pyramid on the square of half side `half` centred at `centre` (horizontal), apex
+// `height` above it: four sides to the apex (outward counter-clockwise) and the underside.
+void appendPyramid(Mesh& m, const Eigen::Vector3d& centre, double half, double height, Rgb8 sides,
+                   Rgb8 underside) {
+  const int v0 = static_cast<int>(m.vertices.size());
+  m.vertices.push_back(centre + Eigen::Vector3d(-half, -half, 0.0));
+  m.vertices.push_back(centre + Eigen::Vector3d(half, -half, 0.0));
+  m.vertices.push_back(centre + Eigen::Vector3d(half, half, 0.0));
+  m.vertices.push_back(centre + Eigen::Vector3d(-half, half, 0.0));
+  m.vertices.push_back(centre + Eigen::Vector3d(0.0, 0.0, height));
+  for (int i = 0; i < 4; ++i) {
+    m.triangles.emplace_back(v0 + i, v0 + (i + 1) % 4, v0 + 4);
+    m.colors.push_back(sides);
+  }
+  m.triangles.emplace_back(v0, v0 + 3, v0 + 2);
+  m.triangles.emplace_back(v0, v0 + 2, v0 + 1);
+  m.colors.push_back(underside);
+  m.colors.push_back(underside);
+}
 }  // namespace
 
 Mesh makeCube(const Eigen::Vector3d& anchor, double scale) {
@@ -326,23 +346,21 @@ Mesh makeTowers(const Eigen::Vector3d& anchor, double scale) {
     const Eigen::Vector3d base = anchor + Eigen::Vector3d(side * 0.15 * scale, 0.0, 0.0);
     append(m, makeBox(base + Eigen::Vector3d(-half, -half, 0.0),
                       base + Eigen::Vector3d(half, half, height), Rgb8{215, 195, 160}));
-    // Pyramid roof: four triangles to the apex (outward counter-clockwise).
-    const int v0 = static_cast<int>(m.vertices.size());
-    const double r = half * 1.25;
-    m.vertices.push_back(base + Eigen::Vector3d(-r, -r, height));
-    m.vertices.push_back(base + Eigen::Vector3d(r, -r, height));
-    m.vertices.push_back(base + Eigen::Vector3d(r, r, height));
-    m.vertices.push_back(base + Eigen::Vector3d(-r, r, height));
-    m.vertices.push_back(base + Eigen::Vector3d(0.0, 0.0, height + roof));
-    for (int i = 0; i < 4; ++i) {
-      m.triangles.emplace_back(v0 + i, v0 + (i + 1) % 4, v0 + 4);
-      m.colors.push_back(Rgb8{180, 50, 40});
-    }
-    m.triangles.emplace_back(v0, v0 + 3, v0 + 2);  // underside of the eaves
-    m.triangles.emplace_back(v0, v0 + 2, v0 + 1);
-    m.colors.push_back(Rgb8{120, 35, 30});
-    m.colors.push_back(Rgb8{120, 35, 30});
+    appendPyramid(m, base + Eigen::Vector3d(0.0, 0.0, height), half * 1.25, roof, Rgb8{180, 50, 40},
+                  Rgb8{120, 35, 30});
   }
+  return m;
+}
+
+Mesh makeUpArrow(const Eigen::Vector3d& base, double length) {
+  Mesh m;
+  const double shaft = 0.025 * length;
+  const double shaft_top = 0.72 * length;
+  const Rgb8 yellow{250, 205, 40};
+  append(m, makeBox(base + Eigen::Vector3d(-shaft, -shaft, 0.0),
+                    base + Eigen::Vector3d(shaft, shaft, shaft_top), yellow));
+  appendPyramid(m, base + Eigen::Vector3d(0.0, 0.0, shaft_top), 0.09 * length, length - shaft_top,
+                yellow, Rgb8{200, 160, 30});
   return m;
 }
 

@@ -93,6 +93,8 @@ Mesh makeCube(const Eigen::Vector3d& anchor, double scale);
 /// Two towers with pyramid roofs standing on the ground either side of `anchor` (the paper's
 /// Figure 8): 0.12 x 0.12 x 0.45 bodies, 0.3 apart, times `scale`.
 Mesh makeTowers(const Eigen::Vector3d& anchor, double scale);
+/// The scene's up: a yellow arrow of `length` standing on the ground at `base` along +z.
+Mesh makeUpArrow(const Eigen::Vector3d& base, double length);
 /// The scene frame: red x, green y, blue z arrows of length 0.4 * scale from `origin`.
 Mesh makeAxes(const Eigen::Vector3d& origin, double scale);
 /// A square grid on the ground plane centred at `centre`, `half_extent` wide each way, a line

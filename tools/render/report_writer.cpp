@@ -9,91 +9,14 @@
 #include <vector>
 
 #include "hal/io/file_util.hpp"
+#include "tools/render/report_html.hpp"
+#include "tools/render/report_views.hpp"
 
 namespace epitrack::render {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// -- text helpers -------------------------------------------------------------------------------
-
-std::string escapeHtml(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (const char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
-std::string fmt(int digits, double v) {
-  if (!std::isfinite(v)) return "n/a";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
-
-// Numbers in data-values: enough digits for a test to compare at 1e-5 relative.
-std::string dataNumber(double v) {
-  if (!std::isfinite(v)) return "nan";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.7g", v);
-  return buf;
-}
-
-std::string dataValues(const std::vector<double>& values) {
-  std::string out;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (i > 0) out += ' ';
-    out += dataNumber(values[i]);
-  }
-  return out;
-}
-
-// Coordinates inside the SVG: one decimal is plenty at these sizes.
-std::string px(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.1f", v);
-  return buf;
-}
-
-// -- plotting -----------------------------------------------------------------------------------
-
-// A 1-2-5 step giving about `target` intervals over [lo, hi].
-double niceStep(double lo, double hi, int target) {
-  const double range = hi - lo;
-  if (!(range > 0.0)) return 1.0;
-  const double raw = range / target;
-  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
-  const double r = raw / mag;
-  return (r < 1.5 ? 1.0 : r < 3.5 ? 2.0 : r < 7.5 ? 5.0 : 10.0) * mag;
-}
-
-std::string tickLabel(double v, double step) {
-  if (std::fabs(v) < step * 1e-6) v = 0.0;
-  char buf[32];
-  if (step >= 1.0 || std::fabs(v) >= 1e4)
-    std::snprintf(buf, sizeof(buf), "%.0f", v);
-  else
-    std::snprintf(buf, sizeof(buf), "%.*f", static_cast<int>(std::ceil(-std::log10(step))), v);
-  return buf;
-}
+using namespace report_html;  // NOLINT(google-build-using-namespace): the section helpers
 
 // A rectangular plot area mapping data (x, y) to SVG pixels, with axes, ticks and labels.
 class Plot {
@@ -206,18 +129,6 @@ double maxFinite(const std::vector<double>& v, double fallback) {
   return std::isfinite(m) ? m : fallback;
 }
 
-// The value below which `fraction` of the finite values lie (for robust plot ranges).
-double quantile(std::vector<double> v, double fraction) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return kNaN;
-  const auto k = static_cast<std::size_t>(std::clamp(fraction * static_cast<double>(v.size() - 1),
-                                                     0.0, static_cast<double>(v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
-// -- sections -----------------------------------------------------------------------------------
-
 struct Summary {
   int solved = 0, keyframes = 0, points = 0;
   double mean_px = kNaN, median_px = kNaN;
@@ -312,12 +223,6 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
     h += row("seconds." + stage, stage, fmt(3, secs));
   h += row("seconds.total", "total", fmt(3, rec.seconds.total));
   return h + "</table>\n</section>\n";
-}
-
-std::string figure(const std::string& id, const std::string& title, const std::string& svg,
-                   const std::string& caption) {
-  return "<section id=\"" + id + "\">\n<h2>" + escapeHtml(title) + "</h2>\n<figure>\n" + svg +
-         "</svg>\n<figcaption>" + caption + "</figcaption>\n</figure>\n</section>\n";
 }
 
 std::string perFrameSection(const io::Reconstruction& rec, bool reproj) {
@@ -440,95 +345,6 @@ std::string focalSection(const io::Reconstruction& rec) {
   return figure("focal", "Focal estimates per frame pair", svg, caption);
 }
 
-std::string topViewSection(const io::Reconstruction& rec, const ReportOptions& options) {
-  // Scene frame: with a ground plane z is up, so the top view is the x-y plane; the first-camera
-  // frame keeps the camera axes (y down), so its top view is x-z.
-  const bool z_up = rec.ground != "none";
-  auto u = [](const Eigen::Vector3d& p) { return p.x(); };
-  auto v = [&](const Eigen::Vector3d& p) { return z_up ? p.y() : p.z(); };
-  std::vector<double> pu, pv, cu, cv;
-  for (const auto& p : rec.points)
-    if (p.X.allFinite()) {
-      pu.push_back(u(p.X));
-      pv.push_back(v(p.X));
-    }
-  for (const auto& c : rec.cameras)
-    if (c.solved && c.p_wc.allFinite()) {
-      cu.push_back(u(c.p_wc));
-      cv.push_back(v(c.p_wc));
-    }
-  // Range: every camera and the central 96% of the points, square pixels.
-  double u0 = quantile(pu, 0.02), u1 = quantile(pu, 0.98);
-  double v0 = quantile(pv, 0.02), v1 = quantile(pv, 0.98);
-  if (!std::isfinite(u0)) u0 = u1 = v0 = v1 = 0.0;
-  for (std::size_t i = 0; i < cu.size(); ++i) {
-    u0 = std::min(u0, cu[i]);
-    u1 = std::max(u1, cu[i]);
-    v0 = std::min(v0, cv[i]);
-    v1 = std::max(v1, cv[i]);
-  }
-  constexpr double kSize = 520, kMargin = 24;
-  const double span = std::max({u1 - u0, v1 - v0, 1e-6}) * 1.08;
-  const double uc = 0.5 * (u0 + u1), vc = 0.5 * (v0 + v1);
-  const double scale = (kSize - 2 * kMargin) / span;
-  auto X = [&](double a) { return kSize / 2 + (a - uc) * scale; };
-  auto Y = [&](double b) { return kSize / 2 - (b - vc) * scale; };  // up the page = +y (or +z)
-  std::string svg = "<svg id=\"plot-top-view\" class=\"plot square\" viewBox=\"0 0 " + px(kSize) +
-                    " " + px(kSize) + "\" xmlns=\"http://www.w3.org/2000/svg\" role=\"img\">\n";
-  svg += "<rect class=\"frame\" x=\"0.5\" y=\"0.5\" width=\"" + px(kSize - 1) + "\" height=\"" +
-         px(kSize - 1) + "\"/>\n";
-  // A scale bar of a 1-2-5 length about a fifth of the view.
-  const double bar = niceStep(0.0, span, 5);
-  svg += "<line class=\"scalebar\" x1=\"" + px(kMargin) + "\" y1=\"" + px(kSize - 12) + "\" x2=\"" +
-         px(kMargin + bar * scale) + "\" y2=\"" + px(kSize - 12) + "\"/><text class=\"tick\" x=\"" +
-         px(kMargin + bar * scale + 6) + "\" y=\"" + px(kSize - 8) + "\">" + tickLabel(bar, bar) +
-         " scene units</text>\n";
-  // Scene axes at the origin.
-  svg += "<line class=\"axis-u\" x1=\"" + px(X(0)) + "\" y1=\"" + px(Y(0)) + "\" x2=\"" +
-         px(X(0) + 40) + "\" y2=\"" + px(Y(0)) + "\"/><line class=\"axis-v\" x1=\"" + px(X(0)) +
-         "\" y1=\"" + px(Y(0)) + "\" x2=\"" + px(X(0)) + "\" y2=\"" + px(Y(0) - 40) + "\"/>\n";
-  svg += "<text class=\"tick\" x=\"" + px(X(0) + 42) + "\" y=\"" + px(Y(0) + 4) +
-         "\">x</text><text class=\"tick\" x=\"" + px(X(0) - 3) + "\" y=\"" + px(Y(0) - 44) + "\">" +
-         (z_up ? "y" : "z") + "</text>\n";
-  svg += "<g data-series=\"points\" data-count=\"" + std::to_string(pu.size()) +
-         "\" fill=\"#555\" fill-opacity=\"0.55\">";
-  for (std::size_t i = 0; i < pu.size(); ++i) {
-    const double x = X(pu[i]), y = Y(pv[i]);
-    if (x < 0 || x > kSize || y < 0 || y > kSize) continue;
-    svg += "<circle cx=\"" + px(x) + "\" cy=\"" + px(y) + "\" r=\"1.6\"/>";
-  }
-  svg += "</g>\n<g data-series=\"camera_path\" data-count=\"" + std::to_string(cu.size()) +
-         "\" data-u=\"" + dataValues(cu) + "\" data-v=\"" + dataValues(cv) + "\">";
-  std::string path;
-  for (std::size_t i = 0; i < cu.size(); ++i) {
-    if (i > 0) path += ' ';
-    path += px(X(cu[i]));
-    path += ',';
-    path += px(Y(cv[i]));
-  }
-  if (!path.empty()) {
-    svg += "<polyline class=\"path\" points=\"" + path + "\"/>";
-    svg += "<circle class=\"start\" cx=\"" + px(X(cu.front())) + "\" cy=\"" + px(Y(cv.front())) +
-           "\" r=\"5\"><title>first solved camera</title></circle>";
-    svg += "<circle class=\"end\" cx=\"" + px(X(cu.back())) + "\" cy=\"" + px(Y(cv.back())) +
-           "\" r=\"5\"><title>last solved camera</title></circle>";
-  }
-  svg += "</g>\n";
-  if (options.has_object && options.object_at.allFinite()) {
-    const double ox = X(u(options.object_at)), oy = Y(v(options.object_at));
-    svg += "<g data-series=\"object\" data-values=\"" + dataNumber(u(options.object_at)) + " " +
-           dataNumber(v(options.object_at)) + "\"><rect class=\"object\" x=\"" + px(ox - 5) +
-           "\" y=\"" + px(oy - 5) + "\" width=\"10\" height=\"10\"><title>virtual object (" +
-           escapeHtml(options.render_object) + ")</title></rect></g>\n";
-  }
-  return figure("top-view", "Top view: camera path and point cloud", svg,
-                std::string("Seen from above in the scene frame (") +
-                    (z_up ? "x-y plane, z up" : "x-z plane of the first camera") + "): " +
-                    std::to_string(cu.size()) + " camera centres (green start, red end) over " +
-                    std::to_string(pu.size()) + " points (central 96% framed)" +
-                    (options.has_object ? "; the orange square is the virtual object" : "") + ".");
-}
-
 std::string stripSection(const ReportOptions& options) {
   std::string h = "<section id=\"augmented\">\n<h2>Augmented frames</h2>\n";
   if (options.augmented_frames.empty()) {
@@ -572,6 +388,10 @@ svg .start { fill: #27ae60; } svg .end { fill: #c0392b; }
 svg .object { fill: #e67e22; stroke: #7e3f0a; stroke-width: 1.5; }
 svg .axis-u { stroke: #c0392b; stroke-width: 2; } svg .axis-v { stroke: #27ae60; stroke-width: 2; }
 svg .scalebar { stroke: #222; stroke-width: 3; }
+svg .ground { stroke: #795548; stroke-width: 2.5; } svg .below-ground { fill: #efebe9; }
+svg .up line { stroke: #b7950b; stroke-width: 3; } svg .up path { fill: #b7950b; }
+.warn { background: #fdebd0; border-left: 4px solid #e67e22; padding: 6px 10px; }
+img.scene-frame { max-width: 560px; width: 100%; height: auto; border: 1px solid #ccc; }
 .strip { display: grid; grid-template-columns: repeat(3, 1fr); gap: 8px; }
 .strip img { width: 100%; height: auto; display: block; border: 1px solid #ccc; }
 )";
@@ -621,6 +441,7 @@ std::string formatReportHtml(const io::Reconstruction& rec, const ReportOptions&
   h += focalSection(rec);
   h += "</div>\n";
   h += topViewSection(rec, options);
+  h += sceneFrameSection(rec, options);
   h += stripSection(options);
   h += "</body>\n</html>\n";
   return h;

@@ -3,8 +3,9 @@
 // DIR/report.html of epitrack-solve (issue 7): one self-contained HTML file (inline CSS and SVG, no
 // script, no network) that shows the solve: the summary.json figures, the reprojection error and
 // the live features per frame, the track-length histogram, the per-pair focal estimates with the
-// chosen focal, a top view of the camera path over the point cloud, and a strip of augmented
-// frames (relative links to DIR/augmented/*.jpg).
+// chosen focal, a top view of the camera path over the point cloud, the scene frame (a side view
+// of the ground, the up direction and the object, one augmented frame showing them, warnings when
+// the choice is weak), and a strip of augmented frames (relative links to DIR/augmented/*.jpg).
 //
 // Every plotted series also sits in the file as data: each plot is an <svg> whose
 // `data-series="NAME"` groups carry `data-values` (space-separated numbers, "nan" for gaps), so
@@ -37,6 +38,10 @@ struct ReportOptions {
   /// Where the virtual object stands (scene frame), marked in the top view when set.
   bool has_object = false;
   Eigen::Vector3d object_at = Eigen::Vector3d::Zero();
+  /// A frame drawn with the ground grid, the up arrow and the object (path relative to the
+  /// report, e.g. "scene_frame.jpg"; empty: none), and its frame index.
+  std::string scene_frame_image;
+  int64_t scene_frame_index = -1;
 };
 
 /// Track length (solved-frame observations) of every scene point with at least one observation,

@@ -19,6 +19,17 @@ using epitrack::tools::CommandLine;
 namespace synth = epitrack::synth;
 namespace hal = epitrack::hal;
 
+namespace {
+
+// Shortest round-trip-free rendering of an option value for the ground-truth headers ("1.5").
+std::string formatNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   synth::SynthOptions o;
   std::string scene = "orbit";
@@ -34,12 +45,17 @@ int main(int argc, char** argv) {
       "ground truth: DIR/frames/000000.pgm..., groundtruth.txt (T_wc per frame), intrinsics.txt,\n"
       "points3d.txt (id X Y Z of every texture corner) and landmarks.txt (frame id x y of every\n"
       "corner visible in that frame). Deterministic for a seed on every platform.");
-  cl.choice("scene", {"orbit", "dolly", "pan", "handheld", "planar"},
+  cl.choice("scene",
+            {"orbit", "dolly", "pan", "handheld", "planar", "shake", "fastpan", "occlusion"},
             "camera motion: orbit = arc around a look-at target (0.25 deg/frame, radius 6 m); "
             "dolly = forward\n"
             "      motion (<= 1.5 cm/frame); pan = pure rotation; handheld = sideways walk plus "
-            "shake; planar = one\n"
-            "      textured plane (default orbit)",
+            "gentle shake; planar = one\n"
+            "      textured plane; shake = distant room, slow drift, hand-held jitter at 1-8 Hz "
+            "(30 fps) with jerks;\n"
+            "      fastpan = back-and-forth pan up to ~3.5 deg/frame with a small drift; "
+            "occlusion = orbit around\n"
+            "      pillars at several depths (default orbit)",
             &scene);
   cl.integer("frames", "N", "number of frames (default 100)", &o.frames, 1, 100000);
   cl.text("size", "WxH", "image size in pixels (default 704x576)", &size);
@@ -57,6 +73,10 @@ int main(int argc, char** argv) {
           "point,\n"
           "      a critical motion for focal self-calibration (default 0)",
           &o.target_wander, 0.0, 10.0);
+  cl.real("shake", "DEG",
+          "shake: peak rotational jitter per axis in degrees; the jerks scale with it "
+          "(default 2)",
+          &o.shake_deg, 0.0, 10.0);
   cl.integer("seed", "S", "seed of the scene layout, textures, shake and noise (default 1)", &seed,
              0, 2147483647);
   cl.integer("threads", "N", "rendering threads (default: all cores)", &threads, 1, 256);
@@ -131,9 +151,11 @@ int main(int argc, char** argv) {
   }
 
   // Ground truth files.
-  const std::string what = std::string("epitrack-synth --scene ") + scene + " --frames " +
-                           std::to_string(o.frames) + " --size " + size + " --seed " +
-                           std::to_string(seed);
+  const std::string what =
+      std::string("epitrack-synth --scene ") + scene + " --frames " + std::to_string(o.frames) +
+      " --size " + size + " --seed " + std::to_string(seed) +
+      (o.kind == synth::SceneKind::kShake ? " --shake " + formatNumber(o.shake_deg)
+                                          : std::string());
   std::vector<hal::TrajectoryEntry> traj;
   for (int f = 0; f < o.frames; ++f) {
     const synth::Pose p = seq.pose(f);

@@ -269,6 +269,42 @@ Scene makeRoomScene(uint64_t seed) {
   return s;
 }
 
+Scene makeOcclusionScene(uint64_t seed) {
+  Scene s;
+  const Eigen::Vector3d X(1, 0, 0);
+  const Eigen::Vector3d Y(0, 1, 0);
+  const Eigen::Vector3d Z(0, 0, 1);
+  addTexturedQuad(s, {-12, -12, 0}, X, Y, 0.3, 80, 80, mixSeed(seed, 500));  // floor, normal +z
+  addTexturedQuad(s, {-12, 12, 0}, X, Z, 0.4, 60, 20, mixSeed(seed, 501));   // y = +12, faces -y
+  addTexturedQuad(s, {12, -12, 0}, -X, Z, 0.4, 60, 20, mixSeed(seed, 502));  // y = -12, faces +y
+  addTexturedQuad(s, {12, 12, 0}, -Y, Z, 0.4, 60, 20, mixSeed(seed, 503));   // x = +12, faces -x
+  addTexturedQuad(s, {-12, -12, 0}, Y, Z, 0.4, 60, 20, mixSeed(seed, 504));  // x = -12, faces +x
+  // Pillars: rejection-sampled footprints with a 0.25 m gap between them.
+  SplitMix64 rng(mixSeed(seed, 600));
+  std::vector<Eigen::Vector3d> placed;  // x, y, radius
+  const double cell = 0.15;
+  for (int attempt = 0; attempt < 2000 && placed.size() < 14; ++attempt) {
+    const int kx = rng.uniformInt(2, 5);
+    const int ky = rng.uniformInt(2, 5);
+    const int kz = rng.uniformInt(8, 16);
+    // Area-uniform radius, so the pillars fill the disc rather than crowd its centre.
+    const double r = 0.3 + 4.3 * std::sqrt(rng.uniform());
+    const double phi = rng.uniform(0.0, 2.0 * kPi);
+    const double yaw = rng.uniform(0.0, kPi);
+    const Eigen::Vector2d c(r * portableCos(phi), r * portableSin(phi));
+    const double radius = 0.5 * cell * std::sqrt(static_cast<double>(kx * kx + ky * ky)) + 0.125;
+    bool free = true;
+    for (const auto& p : placed) {
+      if ((c - p.head<2>()).norm() < radius + p.z()) free = false;
+    }
+    if (!free) continue;
+    placed.emplace_back(c.x(), c.y(), radius);
+    addBox(s, c, yaw, cell, kx, ky, kz, mixSeed(seed, 700 + placed.size()));
+  }
+  collectLandmarks(s);
+  return s;
+}
+
 Scene makePlanarScene(uint64_t seed) {
   Scene s;
   addTexturedQuad(s, {-8, 4, -3}, {1, 0, 0}, {0, 0, 1}, 0.25, 64, 40, mixSeed(seed, 400));

@@ -64,6 +64,10 @@ void addTexturedQuad(Scene& scene, const Eigen::Vector3d& origin, const Eigen::V
 /// a seeded arrangement of textured boxes within 3.5 m of the origin.
 Scene makeRoomScene(uint64_t seed);
 
+/// The room's floor and walls with 14 seeded textured pillars (0.3-0.75 m wide, 1.2-2.4 m high)
+/// at 0.3-4.6 m from the origin, so that a camera orbiting at 6.5 m sees them cross each other.
+Scene makeOcclusionScene(uint64_t seed);
+
 /// A single textured wall (the plane y = 4, facing -y), 16 x 10 m.
 Scene makePlanarScene(uint64_t seed);
 

@@ -34,14 +34,20 @@ CameraFrameQuad toCamera(const TexturedQuad& q, const Pose& pose) {
 }  // namespace
 
 SyntheticSequence::SyntheticSequence(const SynthOptions& options) : options_(options) {
-  scene_ = options.kind == SceneKind::kPlanar ? makePlanarScene(options.seed)
-                                              : makeRoomScene(options.seed);
+  if (options.kind == SceneKind::kPlanar) {
+    scene_ = makePlanarScene(options.seed);
+  } else if (options.kind == SceneKind::kOcclusion) {
+    scene_ = makeOcclusionScene(options.seed);
+  } else {
+    scene_ = makeRoomScene(options.seed);
+  }
   camera_ = CameraModel::centered(options.width, options.height, options.focal);
   camera_.k1 = options.k1;
   camera_.k2 = options.k2;
   trajectory_.kind = options.kind;
   trajectory_.frames = options.frames;
   trajectory_.target_wander = options.target_wander;
+  trajectory_.shake_deg = options.shake_deg;
   trajectory_.seed = options.seed;
 }
 

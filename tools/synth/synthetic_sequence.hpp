@@ -21,6 +21,7 @@ struct SynthOptions {
   double k1 = 0.0;           ///< radial distortion
   double k2 = 0.0;
   double target_wander = 0.0;  ///< orbit: look-at target motion amplitude (m)
+  double shake_deg = 2.0;      ///< shake: peak rotational jitter per axis (degrees)
   uint64_t seed = 1;
 };
 

@@ -47,6 +47,7 @@ void EpipolarTrackFilter::reset() {
   std::fill(strikes_.begin(), strikes_.end(), 0);
   newest_ = -1;
   filled_ = 0;
+  frames_ = 0;
   beginFrame();
 }
 
@@ -109,8 +110,8 @@ void EpipolarTrackFilter::check(int age) {
   const std::span<const Eigen::Vector2d> x1(x_ref_.data(), n), x2(x_cur_.data(), n);
   const uint64_t seed = options_.seed + 0x9e3779b97f4a7c15ULL * checks_++;
   FundamentalOptions fo;
-  fo.ransac =
-      RansacOptions{options_.ransac_threshold_px, 0.999, 8, options_.ransac_iterations, seed};
+  fo.refit_rounds = 1;  // the verdict needs the inlier set, not the last digit of F  fo.ransac =
+  RansacOptions{options_.ransac_threshold_px, 0.999, 8, options_.ransac_iterations, seed};
   HomographyOptions ho;
   ho.ransac = RansacOptions{options_.ransac_threshold_px, 0.999, 8, options_.ransac_iterations,
                             seed ^ 0x5bd1e995ULL};
@@ -182,7 +183,8 @@ void EpipolarTrackFilter::record() {
 
 int EpipolarTrackFilter::endFrame() {
   // filled_ counts recorded frames; the ring keeps window_ of them (ages 1..filled_).
-  const int age = filled_ > 0 ? chooseReference() : 0;
+  const bool due = frames_++ % static_cast<uint64_t>(std::max(options_.interval, 1)) == 0;
+  const int age = due && filled_ > 0 ? chooseReference() : 0;
   if (age > 0) {
     gather(age);
     check(age);

@@ -33,6 +33,9 @@ struct EpipolarFilterOptions {
   /// A model whose RANSAC inliers are fewer than this fraction of the checked tracks does not
   /// describe the frame pair (rolling shutter, a non-rigid scene, a bad fit): it rejects nothing.
   double min_inlier_fraction = 0.8;
+  /// A check every `interval` frames (the history is recorded every frame): the cost is two
+  /// RANSAC fits per check, and a slide needs several frames to grow anyway.
+  int interval = 2;
   /// Checks in a row a track must fail before it is rejected (one noisy frame is not enough).
   int consecutive = 2;
   /// RANSAC of F and H: inlier threshold (px), a fixed iteration bound, the seed.
@@ -127,6 +130,7 @@ class EpipolarTrackFilter {
   FundamentalRansac fundamental_;
   HomographyRansac homography_;
   uint64_t checks_ = 0;  // checks run so far (mixed into the RANSAC seed)
+  uint64_t frames_ = 0;  // endFrame calls since construction or reset
   EpipolarCheckSummary summary_;
 };
 

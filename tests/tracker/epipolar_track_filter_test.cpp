@@ -89,7 +89,7 @@ TEST_CASE("Epipolar filter: sliding tracks of an orbit are rejected with F, corr
     INFO("seed " << seed << ": F checks " << run.checks_f << ", H checks " << run.checks_h);
     // A slide of 0.5 px/frame across the epipolar line is found within 10 frames.
     requireOutliersFoundAndInliersKept(scene, run, scene.slide_start + 10);
-    CHECK(run.checks_f > 40);  // a scene with depth: the fundamental matrix
+    CHECK(run.checks_f > 20);  // of 30 due (interval 2): a scene with depth, F
     CHECK(run.checks_h == 0);
   }
 }
@@ -101,7 +101,7 @@ TEST_CASE("Epipolar filter: a pure rotation uses H and keeps every correct track
     const FilterRun run = runFilter(scene, EpipolarFilterOptions{}, seed + 200);
     INFO("seed " << seed << ": F checks " << run.checks_f << ", H checks " << run.checks_h);
     requireOutliersFoundAndInliersKept(scene, run, scene.slide_start + 10);
-    CHECK(run.checks_h > 40);
+    CHECK(run.checks_h > 20);  // of 30 due (interval 2)
     CHECK(run.checks_f == 0);
   }
 }
@@ -113,7 +113,7 @@ TEST_CASE("Epipolar filter: a planar scene uses H and keeps every correct track"
     const FilterRun run = runFilter(scene, EpipolarFilterOptions{}, seed + 300);
     INFO("seed " << seed << ": F checks " << run.checks_f << ", H checks " << run.checks_h);
     requireOutliersFoundAndInliersKept(scene, run, scene.slide_start + 10);
-    CHECK(run.checks_h > 40);
+    CHECK(run.checks_h > 20);  // of 30 due (interval 2)
   }
 }
 
@@ -126,7 +126,7 @@ TEST_CASE("Epipolar filter: noisier tracks without outliers lose nothing", "[tra
     int lost = 0;
     for (const int at : run.rejected_at) lost += at >= 0 ? 1 : 0;
     CHECK(lost == 0);
-    CHECK(run.checks_none < 10);  // the checks ran
+    CHECK(run.checks_none < 36);  // the checks ran (30 frames are not due)
   }
 }
 
@@ -173,7 +173,7 @@ TEST_CASE(
     CHECK(c.reference_age == std::min(f, options.window));
     CHECK(c.median_displacement_px >= options.min_span_displacement_px);
   }
-  CHECK(checks >= 15);
+  CHECK(checks >= 8);  // of 15 due
 }
 
 TEST_CASE("Epipolar filter: results are a pure function of the input", "[tracker][epipolar]") {

@@ -76,11 +76,11 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
-  bool no_epipolar = false;
-  cl.flag("no-epipolar",
-          "disable the epipolar check (tracks off the rigid two-view relation, F or H, over "
-          "several frames are dropped; docs/tracker.md)",
-          &no_epipolar);
+  bool epipolar = false;
+  cl.flag("epipolar",
+          "the epipolar check: drop tracks that stay off the rigid two-view relation (F, or H "
+          "for a rotation or a plane) over several frames (docs/tracker.md; default off)",
+          &epipolar);
   cl.real("max-residual", "R",
           "drop a track beyond this relative residual or --residual-scale-max frame medians "
           "(default 0.5)",
@@ -132,7 +132,7 @@ int main(int argc, char** argv) {
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
   if (whole_window) o.wholeWindow();
   o.kalman_gate = !no_kalman;
-  o.epipolar_check = !no_epipolar;
+  o.epipolar_check = epipolar;
   o.affine = !translation_only;
   epitrack::tools::Matcher matcher = epitrack::tools::Matcher::kAuto;
   epitrack::tools::parseMatcher(matcher_text, matcher);

@@ -1,10 +1,14 @@
 #include <catch2/catch.hpp>
 
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <set>
+#include <string>
 
 #include "algo/tracking/feature_tracker.hpp"
+#include "tests/support/process.hpp"
+#include "tests/support/test_support.hpp"
 #include "tests/tracker/clip_prefix.hpp"
 #include "tests/tracker/orbit_clip.hpp"
 
@@ -116,4 +120,42 @@ TEST_CASE("The epipolar check on the orbit and the occlusion clip with noise sig
   o.seed = 1;
   const auto clip = epitrack::test::addNoise(epitrack::test::renderClip(o), 1.0, 7);
   compareOnOff("occlusion sigma 1", clip, false);
+}
+
+TEST_CASE("epitrack-track --frame-stats has the epipolar column; --epipolar turns the check on",
+          "[tracker][epipolar][command]") {
+  epitrack::test::TempDir dir("track-epipolar");
+  const std::string synth = epitrack::test::binaryPath("tools/synth/epitrack-synth");
+  const std::string track = epitrack::test::binaryPath("tools/track/epitrack-track");
+  REQUIRE(epitrack::test::run(synth +
+                              " --scene occlusion --frames 40 --size 320x240 --focal 280 --out " +
+                              dir.path() + "/clip 2>/dev/null") == 0);
+  const std::string base = track + " " + dir.path() + "/clip/frames --out " +
+                           dir.file("tracks.csv") + " --features 150 --quiet --frame-stats";
+  // The epipolar check's time: zero without the check, positive with it (summed over frames).
+  auto epipolarMs = [](const std::string& err, int& lines) {
+    double total = 0.0;
+    lines = 0;
+    std::size_t at = 0;
+    while ((at = err.find(" epipolar ", at)) != std::string::npos) {
+      at += 10;
+      const std::size_t ms = err.find("lk ", at);
+      if (ms == std::string::npos) break;
+      const std::size_t e = err.find(" epipolar ", ms);
+      if (e == std::string::npos) break;
+      total += std::atof(err.c_str() + e + 10);
+      ++lines;
+      at = e + 10;
+    }
+    return total;
+  };
+  const auto off = epitrack::test::runCaptured(base, dir.file("off"));
+  const auto on = epitrack::test::runCaptured(base + " --epipolar", dir.file("on"));
+  REQUIRE(off.exit_code == 0);
+  REQUIRE(on.exit_code == 0);
+  int lines_off = 0, lines_on = 0;
+  CHECK(epipolarMs(off.err, lines_off) == 0.0);
+  CHECK(epipolarMs(on.err, lines_on) > 0.0);
+  CHECK(lines_off == 40);
+  CHECK(lines_on == 40);
 }

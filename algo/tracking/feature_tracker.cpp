@@ -56,6 +56,8 @@ const char* trackLossName(TrackLoss loss) {
       return "gate";
     case TrackLoss::kMask:
       return "mask";
+    case TrackLoss::kEpipolar:
+      return "epipolar";
   }
   return "unknown";
 }
@@ -65,7 +67,8 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
       width_(width),
       height_(height),
       detector_(detectorOptions(options), width, height),
-      lk_(lkOptions(options), std::max(options.max_features, 0) + 1) {  // + the check's slot
+      lk_(lkOptions(options), std::max(options.max_features, 0) + 1),  // + the check's slot
+      epipolar_(options.epipolar, std::max(options.max_features, 0)) {
   options_.max_features = std::max(options_.max_features, 0);
   options_.levels = std::clamp(options_.levels, 0, Pyramid::kMaxLevels - 1);
   if (width > 0 && height > 0) {
@@ -347,6 +350,27 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   }
 }
 
+void FeatureTracker::epipolarCheck() {
+  const auto t0 = stageNow();
+  epipolar_.beginFrame();
+  for (std::size_t s = 0; s < tracks_.size(); ++s) {
+    const Track& t = tracks_[s];
+    if (t.live) epipolar_.observe(static_cast<int>(s), t.id, t.x, t.y);
+  }
+  if (epipolar_.endFrame() > 0) {
+    for (std::size_t s = 0; s < tracks_.size(); ++s) {
+      Track& t = tracks_[s];
+      if (!t.live || !epipolar_.rejected(static_cast<int>(s))) continue;
+      t.live = false;
+      --live_count_;
+      ++stats_.lost_epipolar;
+      lost_[static_cast<std::size_t>(lost_count_++)] =
+          LostTrack{t.id, t.x, t.y, t.age, TrackLoss::kEpipolar};
+    }
+  }
+  stats_.epipolar_ms = msSince(t0);
+}
+
 FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
                                              ImageView<const uint8_t> mask) {
   if (pyramids_[0].levelCount() == 0) return Status::kNotConfigured;
@@ -386,6 +410,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
     }
     stats_.lk_ms = msSince(t0);
     stats_.lk_iterations = lk_.iterations();
+    if (options_.epipolar_check) epipolarCheck();
   }
   ++frames_since_detect_;
   const double target = options_.redetect_fraction * options_.max_features;

@@ -76,6 +76,11 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
+  bool epipolar = false;
+  cl.flag("epipolar",
+          "the epipolar check: drop tracks that stay off the rigid two-view relation (F, or H "
+          "for a rotation or a plane) over several frames (docs/tracker.md; default off)",
+          &epipolar);
   cl.real("max-residual", "R",
           "drop a track beyond this relative residual or --residual-scale-max frame medians "
           "(default 0.5)",
@@ -127,6 +132,7 @@ int main(int argc, char** argv) {
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
   if (whole_window) o.wholeWindow();
   o.kalman_gate = !no_kalman;
+  o.epipolar_check = epipolar;
   o.affine = !translation_only;
   epitrack::tools::Matcher matcher = epitrack::tools::Matcher::kAuto;
   epitrack::tools::parseMatcher(matcher_text, matcher);
@@ -205,12 +211,13 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
-          "residual %d forward-backward %d gate %d mask %d; fb checks %d, refreshed %d, detected "
-          "%d; residual median %.3f; ms pyramid %.2f lk %.2f detect %.2f\n",
+          "residual %d forward-backward %d gate %d mask %d epipolar %d; fb checks %d, refreshed "
+          "%d, detected %d; residual median %.3f; ms pyramid %.2f lk %.2f epipolar %.2f detect "
+          "%.2f\n",
           frames, fs.tracked, fs.lost_left_image, fs.lost_no_convergence, fs.lost_low_texture,
-          fs.lost_residual, fs.lost_forward_backward, fs.lost_gate, fs.lost_mask,
+          fs.lost_residual, fs.lost_forward_backward, fs.lost_gate, fs.lost_mask, fs.lost_epipolar,
           fs.forward_backward_checks, fs.refreshed, fs.detected, fs.residual_median, fs.pyramid_ms,
-          fs.lk_ms, fs.detect_ms);
+          fs.lk_ms, fs.epipolar_ms, fs.detect_ms);
     }
     ++frames;
     if (!quiet && frames % 50 == 0) {

@@ -300,7 +300,7 @@ TEST_CASE("The occlusion scene occludes far more corners per frame than the orbi
   CHECK(occlusion > 4.0 * orbit);
 }
 
-TEST_CASE("--orbit-speed sets the orbit's arc per frame", "[synth][motion]") {
+TEST_CASE("synth: --orbit-speed sets the orbit's arc per frame", "[synth][motion]") {
   synth::TrajectoryParams t;
   t.kind = synth::SceneKind::kOrbit;
   t.orbit_speed_deg = 0.75;

@@ -27,6 +27,15 @@ class KalmanFilterCv {
   void init(double x, double y);
   /// Time update by dt frames (F = [I dt I; 0 I], Q from the white-noise acceleration model).
   void predict(double dt = 1.0);
+  /// Control input (B u): moves the position by (dx, dy) and the velocity by (dvx, dvy), known
+  /// changes the filter did not predict (the image motion the camera caused, measured from the
+  /// whole frame), leaving the covariance.
+  void control(double dx, double dy, double dvx, double dvy) {
+    state_(0) += dx;
+    state_(1) += dy;
+    state_(2) += dvx;
+    state_(3) += dvy;
+  }
   /// Squared Mahalanobis distance of the measurement (mx, my) from the predicted position.
   [[nodiscard]] double mahalanobis2(double mx, double my) const;
   /// True when the measurement lies inside the chi-square gate.

@@ -30,6 +30,12 @@ LkOptions lkOptions(const FeatureTrackerOptions& o) {
   return l;
 }
 
+GlobalMotionOptions motionOptions(const FeatureTrackerOptions& o) {
+  GlobalMotionOptions m = o.motion;
+  m.max_points = std::max(o.motion_anchors, 0);
+  return m;
+}
+
 // Stage times are processor time of the process (std::clock): on a shared machine they measure
 // the work, not the waiting for a core. The tracker runs on the calling thread only.
 using StageClock = std::clock_t;
@@ -68,7 +74,8 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
       height_(height),
       detector_(detectorOptions(options), width, height),
       lk_(lkOptions(options), std::max(options.max_features, 0) + 1),  // + the check's slot
-      epipolar_(options.epipolar, std::max(options.max_features, 0)) {
+      epipolar_(options.epipolar, std::max(options.max_features, 0)),
+      motion_estimator_(motionOptions(options)) {
   options_.max_features = std::max(options_.max_features, 0);
   options_.levels = std::clamp(options_.levels, 0, Pyramid::kMaxLevels - 1);
   if (width > 0 && height > 0) {
@@ -218,10 +225,10 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
   const int slot = static_cast<int>(s);
   const float x0 = t.x;
   const float y0 = t.y;
-  // The prediction: the Kalman filter's for a track with a velocity, else the neighbours' motion.
+  // The prediction: an established track's is its Kalman filter's (its own constant velocity
+  // plus this frame's global motion, predictAll), a young track's the neighbours' motion.
   float px = x0;
   float py = y0;
-  if (options_.kalman_gate) t.kalman.predict(1.0 + static_cast<double>(skipped_frames_));
   if (young) {
     if (options_.neighbour_prior) {
       float dx = 0.0f, dy = 0.0f;
@@ -232,6 +239,11 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
   } else if (options_.kalman_gate) {
     px = static_cast<float>(t.kalman.x());
     py = static_cast<float>(t.kalman.y());
+  } else {
+    double gx = x0, gy = y0;
+    motion_.apply(x0, y0, gx, gy);
+    px = static_cast<float>(gx);
+    py = static_cast<float>(gy);
   }
   Candidate& c = t.candidate;
   c.x = px;
@@ -330,8 +342,15 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
   }
   if (options_.kalman_gate) {
     // A track seen once has no velocity: its first displacement is judged by the check above.
-    if (!young && !gateAccepts(t.kalman, c.x, c.y)) return drop(stats_.lost_gate, TrackLoss::kGate);
-    t.kalman.correct(c.x, c.y);
+    if (!young && !c.gate_ok) {
+      if (!gate_released_) return drop(stats_.lost_gate, TrackLoss::kGate);
+      // The whole frame left the gate: the camera moved in a way the global motion missed. The
+      // track's history says nothing about this frame: its filter restarts from the measurement.
+      ++stats_.gate_released;
+      t.kalman.init(c.x, c.y);
+    } else {
+      t.kalman.correct(c.x, c.y);
+    }
   }
   t.x = c.x;
   t.y = c.y;
@@ -371,6 +390,84 @@ void FeatureTracker::epipolarCheck() {
   stats_.epipolar_ms = msSince(t0);
 }
 
+void FeatureTracker::anchorPrediction(const Track& t, double& px, double& py) const {
+  if (options_.kalman_gate) {
+    const double dt = 1.0 + static_cast<double>(skipped_frames_);
+    px = static_cast<double>(t.x) + t.kalman.vx() * dt;
+    py = static_cast<double>(t.y) + t.kalman.vy() * dt;
+  } else {
+    last_motion_.apply(static_cast<double>(t.x), static_cast<double>(t.y), px, py);
+  }
+}
+
+void FeatureTracker::estimateGlobalMotion() {
+  motion_estimator_.clear();
+  motion_ = SimilarityMotion{};
+  if (!options_.global_motion || options_.motion_anchors <= 0) return;
+  // Anchors: established tracks spread over a 4x4 grid (a few per cell, in slot order: the
+  // oldest tracks first, so the choice is deterministic). Each is probed through the whole
+  // pyramid from its own prediction (a jerk may have moved it far); the probe only measures the
+  // camera, the track itself is aligned afterwards like every other.
+  constexpr int kGrid = 4;
+  const int per_cell = (options_.motion_anchors + kGrid * kGrid - 1) / (kGrid * kGrid);
+  int in_cell[kGrid * kGrid] = {};
+  int anchors = 0;
+  const Pyramid& pyramid = pyramids_[current_];
+  for (std::size_t s = 0; s < tracks_.size() && anchors < options_.motion_anchors; ++s) {
+    const Track& t = tracks_[s];
+    if (!t.live || t.age == 0) continue;
+    const int cx =
+        std::clamp(static_cast<int>(t.x * kGrid / static_cast<float>(width_)), 0, kGrid - 1);
+    const int cy =
+        std::clamp(static_cast<int>(t.y * kGrid / static_cast<float>(height_)), 0, kGrid - 1);
+    int& n = in_cell[cy * kGrid + cx];
+    if (n >= per_cell) continue;
+    ++n;
+    ++anchors;
+    double px = static_cast<double>(t.x), py = static_cast<double>(t.y);
+    anchorPrediction(t, px, py);
+    float qx = static_cast<float>(px), qy = static_cast<float>(py);
+    PatchShape shape = t.shape;
+    float residual = 0.0f;
+    LkStatus status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
+    if (status != LkStatus::kTracked && options_.kalman_gate) {
+      // Shake reverses: once more from where the track would be had the camera not kept the
+      // last frame's change of velocity.
+      double lx = 0.0, ly = 0.0;
+      last_motion_.apply(static_cast<double>(t.x), static_cast<double>(t.y), lx, ly);
+      const double g = options_.motion_velocity_gain;
+      qx = static_cast<float>(px - g * (lx - static_cast<double>(t.x)));
+      qy = static_cast<float>(py - g * (ly - static_cast<double>(t.y)));
+      shape = t.shape;
+      status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
+    }
+    if (status == LkStatus::kTracked) motion_estimator_.add(px, py, qx, qy);
+  }
+  stats_.motion_anchors = motion_estimator_.size();
+  // No consensus (too few anchors, no dominant motion): every track keeps its own constant
+  // velocity (with the filter), else the camera keeps the last frame's motion.
+  motion_ = options_.kalman_gate ? SimilarityMotion{} : last_motion_;
+  if (motion_estimator_.estimate(motion_) == GlobalMotionEstimator::Status::kOk) {
+    stats_.motion_inliers = motion_estimator_.inlierCount();
+  }
+}
+
+void FeatureTracker::predictAll() {
+  const double dt = 1.0 + static_cast<double>(skipped_frames_);
+  for (Track& t : tracks_) {
+    if (!t.live || !options_.kalman_gate) continue;
+    // What the camera changed since the last frame is the control input: each filter's own
+    // constant velocity (parallax, objects) plus the camera's change, on the position and (by
+    // motion_velocity_gain) on the velocity.
+    t.kalman.predict(dt);
+    double gx = t.kalman.x(), gy = t.kalman.y();
+    motion_.apply(t.kalman.x(), t.kalman.y(), gx, gy);
+    const double dx = gx - t.kalman.x(), dy = gy - t.kalman.y();
+    t.kalman.control(dx, dy, options_.motion_velocity_gain * dx / dt,
+                     options_.motion_velocity_gain * dy / dt);
+  }
+}
+
 FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
                                              ImageView<const uint8_t> mask) {
   if (pyramids_[0].levelCount() == 0) return Status::kNotConfigured;
@@ -388,6 +485,9 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
     t0 = stageNow();
     moved_count_ = 0;
     global_ready_ = false;
+    // The camera's motion first (from the anchors), then every track predicted with it.
+    estimateGlobalMotion();
+    predictAll();
     // Tracks with a velocity first; their motion is the prior of the ones seen once.
     for (std::size_t s = 0; s < tracks_.size(); ++s) {
       if (tracks_[s].live && tracks_[s].age > 0) alignOne(s, false);
@@ -405,6 +505,22 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
     const double residual_scale =
         n > 0 ? static_cast<double>(medianOf(scratch_dx_.data(), n)) : 0.0;
     stats_.residual_median = residual_scale;
+    // The gate, judged for every track before the decisions: when most tracks fail it together,
+    // that is the camera, not the tracks (gate_released_).
+    int judged = 0, failed = 0;
+    for (Track& t : tracks_) {
+      Candidate& c = t.candidate;
+      c.gate_ok = true;
+      if (!t.live || t.age == 0 || c.status != LkStatus::kTracked || !options_.kalman_gate) {
+        continue;
+      }
+      c.gate_ok = gateAccepts(t.kalman, c.x, c.y);
+      ++judged;
+      failed += c.gate_ok ? 0 : 1;
+    }
+    gate_released_ =
+        judged >= options_.gate_release_min &&
+        static_cast<double>(failed) > options_.gate_release_fraction * static_cast<double>(judged);
     for (std::size_t s = 0; s < tracks_.size(); ++s) {
       if (tracks_[s].live) decideOne(s, tracks_[s].age == 0, residual_scale, mask);
     }
@@ -430,6 +546,11 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
       output_[static_cast<std::size_t>(output_count_++)] = TrackedFeature{t.id, t.x, t.y, t.age};
   }
   stats_.tracked = output_count_;
+  double cx = 0.5 * width_, cy = 0.5 * height_;
+  motion_.apply(0.5 * width_, 0.5 * height_, cx, cy);
+  stats_.motion_dx = cx - 0.5 * width_;
+  stats_.motion_dy = cy - 0.5 * height_;
+  if (frame_index_ > 0) last_motion_ = motion_;
   ++frame_index_;
   skipped_frames_ = 0;
   return Status::kOk;

@@ -10,6 +10,7 @@
 #include "algo/image/image_view.hpp"
 #include "algo/image/pyramid.hpp"
 #include "algo/tracking/epipolar_track_filter.hpp"
+#include "algo/tracking/global_motion.hpp"
 
 namespace epitrack {
 
@@ -113,6 +114,22 @@ struct FeatureTrackerOptions {
   /// average (up to 1 ms on a checking frame; LK takes 1.3 ms there).
   bool epipolar_check = false;
   EpipolarFilterOptions epipolar{};
+  /// The camera's image motion per frame (docs/tracker.md, the motion model): up to
+  /// motion_anchors established tracks, spread over a 4x4 grid, are probed first through the
+  /// whole pyramid; a robust similarity between their constant-velocity predictions and where
+  /// they are found (what the camera changed) is a control input of every Kalman filter, so every
+  /// track's prediction and gate follow a camera jerk.
+  bool global_motion = true;
+  int motion_anchors = 48;
+  /// The global motion is what departs from the tracks' own constant velocity (the camera's
+  /// acceleration); this fraction of it is added to every track's velocity (1: the camera keeps
+  /// its new velocity, as a pan or a vehicle does; 0: it returns, as shake does).
+  double motion_velocity_gain = 1.0;
+  GlobalMotionOptions motion{};
+  /// When more than this fraction of the tracks judged by the gate (at least gate_release_min)
+  /// fail it in one frame, the frame moved, not the tracks: the gate is not applied that frame.
+  double gate_release_fraction = 0.5;
+  int gate_release_min = 10;
 };
 
 /// Why a track was dropped (see FeatureTracker::lost).
@@ -164,6 +181,11 @@ struct FrameStats {
   int forward_backward_checks = 0;
   double residual_median = 0.0;  ///< the frame's typical relative residual (the scale)
   long lk_iterations = 0;
+  int motion_anchors = 0;  ///< anchor tracks aligned for the global motion
+  int motion_inliers = 0;  ///< ... that agree with it (0: no model, the last one kept)
+  double motion_dx = 0.0;  ///< the global motion at the image centre, px
+  double motion_dy = 0.0;
+  int gate_released = 0;  ///< tracks let through because the whole frame failed the gate
 };
 
 /// The paper's Figure 4 loop: detect on the first frame; per frame build the pyramid, align every
@@ -211,6 +233,7 @@ class FeatureTracker {
     float residual = 0.0f;
     PatchShape shape;
     LkStatus status = LkStatus::kNoConvergence;
+    bool gate_ok = true;  // inside the Kalman gate (judged before the per-track decisions)
   };
   struct Track {
     int32_t id = 0;
@@ -229,6 +252,13 @@ class FeatureTracker {
   void epipolarCheck();
   /// Aligns track `slot` into this frame (its candidate); `young`: seen in one frame only.
   void alignOne(std::size_t slot, bool young);
+  /// Picks the anchors, probes them and fits this frame's global motion (motion_).
+  void estimateGlobalMotion();
+  /// Where anchor `t` is expected before the global motion is known: its own constant-velocity
+  /// prediction (with the Kalman filter), else the last frame's global motion.
+  void anchorPrediction(const Track& t, double& px, double& py) const;
+  /// Moves every live track's Kalman filter by the global motion and predicts it.
+  void predictAll();
   /// Keeps or drops track `slot` after alignOne (residual, check, mask, gate).
   void decideOne(std::size_t slot, bool young, double residual_scale,
                  ImageView<const uint8_t> mask);
@@ -263,6 +293,10 @@ class FeatureTracker {
   float global_dx_ = 0.0f;  // median of all moved_* (valid when moved_count_ > 0)
   float global_dy_ = 0.0f;
   bool global_ready_ = false;
+  GlobalMotionEstimator motion_estimator_;
+  SimilarityMotion motion_;       // this frame's camera motion (previous frame -> this one)
+  SimilarityMotion last_motion_;  // the previous frame's (the anchors' prediction)
+  bool gate_released_ = false;    // this frame failed the gate as a whole (see track)
   int output_count_ = 0;
   int live_count_ = 0;
   int32_t next_id_ = 0;

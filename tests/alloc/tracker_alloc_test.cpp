@@ -4,6 +4,7 @@
 
 #include "algo/image/image.hpp"
 #include "algo/tracking/feature_tracker.hpp"
+#include "algo/tracking/global_motion.hpp"
 #include "tests/alloc/counting_allocator.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
 
@@ -45,4 +46,24 @@ TEST_CASE("FeatureTracker allocates nothing per frame after the first two", "[al
   REQUIRE(allocations == 0);
   CHECK(detected > 0);  // the paths ran
   CHECK(checks > 0);
+}
+
+// The global motion estimator's buffers are sized at construction: filling and fitting never
+// allocate.
+TEST_CASE("GlobalMotionEstimator allocates nothing per fit", "[alloc][tracker]") {
+  epitrack::GlobalMotionEstimator estimator;
+  AllocationScope scope;
+  epitrack::SimilarityMotion motion;
+  int ok = 0;
+  for (int frame = 0; frame < 10; ++frame) {
+    estimator.clear();
+    for (int i = 0; i < 64; ++i) {
+      const double x = 11.0 * i, y = 7.0 * ((i * 5) % 64);
+      estimator.add(x, y, x + frame, y - 2.0 + (i % 7 == 0 ? 25.0 : 0.0));
+    }
+    ok += estimator.estimate(motion) == epitrack::GlobalMotionEstimator::Status::kOk ? 1 : 0;
+  }
+  REQUIRE(scope.count() == 0);
+  CHECK(ok == 10);
+  CHECK(motion.tx == Approx(9.0).margin(1e-6));
 }

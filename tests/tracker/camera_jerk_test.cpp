@@ -1,0 +1,131 @@
+// The global motion model against camera jerks (issue 20): the rendered orbit with seeded
+// whole-image translations of 5-30 px per frame, reversing (frames and landmark truth shifted
+// alike). Without a model of the camera's motion the per-track constant-velocity gate takes each
+// jerk for hundreds of simultaneous outliers; with it no track may die at the gate, and the
+// tracks must stay as accurate as on the smooth orbit.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "algo/math/random.hpp"
+#include "algo/tracking/feature_tracker.hpp"
+#include "tests/tracker/clip_prefix.hpp"
+
+using epitrack::FeatureTracker;
+using epitrack::FeatureTrackerOptions;
+using epitrack::Image;
+using epitrack::SplitMix64;
+using epitrack::test::RenderedClip;
+
+namespace {
+
+/// `clip` with every frame shifted by a whole-pixel offset (the uncovered border mid-gray) and its
+/// landmarks shifted alike. The offsets wander inside a disk of `radius` px and move by 5-30 px
+/// from one frame to the next (seeded), so the image jerks and reverses on every frame.
+RenderedClip jerked(const RenderedClip& clip, double radius, uint64_t seed) {
+  RenderedClip out;
+  out.well_conditioned = clip.well_conditioned;
+  out.landmarks = clip.landmarks;
+  out.frames.resize(clip.frames.size());
+  SplitMix64 rng(seed);
+  int ox = 0, oy = 0;
+  for (std::size_t f = 0; f < clip.frames.size(); ++f) {
+    if (f > 0) {
+      for (;;) {  // the next offset: in the disk, 5-30 px from the last
+        const double r = radius * std::sqrt(rng.uniform());
+        const double phi = 2.0 * 3.14159265358979323846 * rng.uniform();
+        const int nx = static_cast<int>(std::lround(r * std::cos(phi)));
+        const int ny = static_cast<int>(std::lround(r * std::sin(phi)));
+        const double step = std::hypot(nx - ox, ny - oy);
+        if (step >= 5.0 && step <= 30.0) {
+          ox = nx;
+          oy = ny;
+          break;
+        }
+      }
+    }
+    const Image<uint8_t>& src = clip.frames[f];
+    Image<uint8_t>& dst = out.frames[f];
+    dst.allocate(src.width(), src.height());
+    for (int y = 0; y < src.height(); ++y) {
+      for (int x = 0; x < src.width(); ++x) {
+        const int sx = x - ox, sy = y - oy;
+        const bool inside = sx >= 0 && sy >= 0 && sx < src.width() && sy < src.height();
+        dst(x, y) = inside ? src(sx, sy) : uint8_t{128};
+      }
+    }
+    for (auto& l : out.landmarks[f]) {
+      l.x += ox;
+      l.y += oy;
+    }
+  }
+  return out;
+}
+
+struct Losses {
+  int gate = 0;
+  int worst_frame_gate = 0;
+  int all = 0;
+  long iterations = 0;
+};
+
+Losses countLosses(const RenderedClip& clip, const FeatureTrackerOptions& options) {
+  Losses l;
+  FeatureTracker tracker(options, clip.frames[0].width(), clip.frames[0].height());
+  for (const auto& frame : clip.frames) {
+    REQUIRE(tracker.track(frame.constView()) == FeatureTracker::Status::kOk);
+    const auto& s = tracker.lastStats();
+    l.gate += s.lost_gate;
+    l.worst_frame_gate = std::max(l.worst_frame_gate, s.lost_gate);
+    l.all += s.lost_lk + s.lost_gate + s.lost_residual + s.lost_forward_backward;
+    l.iterations += s.lk_iterations;
+  }
+  return l;
+}
+
+}  // namespace
+
+TEST_CASE("Camera jerks of 5-30 px per frame kill no track at the gate", "[tracker][jerk][slow]") {
+  const RenderedClip& smooth = epitrack::test::orbitPrefix(120);
+  const RenderedClip clip = jerked(smooth, 15.0, 3);
+
+  // Without the camera's motion (and without the mass release) the gate takes the jerks for
+  // outliers: the clip is a real test.
+  FeatureTrackerOptions per_track;
+  per_track.global_motion = false;
+  per_track.gate_release_fraction = 1.0;
+  const Losses before = countLosses(clip, per_track);
+  std::printf("jerked orbit, per-track gate: gate losses %d (worst frame %d), all losses %d\n",
+              before.gate, before.worst_frame_gate, before.all);
+  CHECK(before.worst_frame_gate > 100);
+
+  const FeatureTrackerOptions defaults;
+  const Losses after = countLosses(clip, defaults);
+  std::printf(
+      "jerked orbit, global motion: gate losses %d (worst frame %d), all losses %d, "
+      "%.0f LK iterations per frame\n",
+      after.gate, after.worst_frame_gate, after.all,
+      static_cast<double>(after.iterations) / static_cast<double>(clip.frames.size()));
+  CHECK(after.worst_frame_gate <= 3);
+  CHECK(after.gate <= 20);  // measured 4 in 120 frames (13007 without the model)
+
+  const auto a = epitrack::test::measureTracker(clip, defaults);
+  const auto s = epitrack::test::measureTracker(smooth, defaults);
+  std::printf(
+      "jerked orbit: median %.3f px, p95 %.3f px, beyond 3 px %.2f %%, survival %d/%d; "
+      "smooth: median %.3f p95 %.3f survival %d/%d\n",
+      a.median, a.p95, 100.0 * a.fraction_beyond_3px, a.survived_100, a.visible_100, s.median,
+      s.p95, s.survived_100, s.visible_100);
+  REQUIRE(a.observations > 15000);
+  CHECK(a.median <= 0.15);
+  CHECK(a.p95 <= 1.0);
+  CHECK(a.fraction_beyond_3px < 0.01);
+  REQUIRE(a.visible_100 > 0);
+  // Survival counts the corners visible through frame 100 of the unshifted orbit; the jerks move
+  // those within 15 px of the border out of view or next to the gray fill. A jerk on every frame,
+  // each reversing the last, still costs LK losses (measured 31/180 against 168/180 on the smooth
+  // prefix, 0/180 with the per-track gate): the bound only keeps what is reached.
+  CHECK(static_cast<double>(a.survived_100) >= 0.12 * a.visible_100);
+}

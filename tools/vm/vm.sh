@@ -87,9 +87,9 @@ aarch64-linux-gnu-gcc -O2 -Wall -Wextra -Werror -static -o "$build/vivid-loop" \
 native=${EPITRACK_BUILD_DIR:-$root/build/test}
 [ -f "$native/CMakeCache.txt" ] || cmake -S "$root" -B "$native" -DCMAKE_BUILD_TYPE=Release \
   -DEPITRACK_WERROR=ON -DEPITRACK_BUILD_TESTS=ON >/dev/null
-cmake --build "$native" -j "${EPITRACK_JOBS:-2}" --target epitrack-synth epitrack-eval \
+cmake --build "$native" -j "${EPITRACK_JOBS:-2}" --target epitrack-synth epitrack-eval epitrack-record \
   >"$build/synth.log" 2>&1 ||
-  { tail -n 20 "$build/synth.log" >&2; echo "vm.sh: building epitrack-synth/eval failed" >&2; exit 1; }
+  { tail -n 20 "$build/synth.log" >&2; echo "vm.sh: building epitrack-synth/eval/record failed" >&2; exit 1; }
 clip_src=$build/clip-src
 if [ ! -f "$clip_src/groundtruth.txt" ]; then
   rm -rf "$clip_src"

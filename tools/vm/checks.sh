@@ -233,8 +233,8 @@ if [ -f /clip/clip.gray ] && [ -n "$VM_CLIP" ]; then
 fi
 
 # The clip tracked live through the kernel: vivid-loop plays the clip again, each frame held for
-# 4 output periods (160 ms at vivid's 25 fps S-Video rate: the tracker under emulation needs 60-
-# 90 ms a frame at 720x576, so it sees every clip frame at least once), while epitrack-device
+# 6 output periods and then until the device's pose file has three more lines (tools/vm/
+# vivid_loop.c: the device then processed it, at any speed), while epitrack-device
 # tracks /dev/video0 with the clip's intrinsics and records every captured frame. Each pose line's
 # record_frame names the recorded frame it was computed from; its pixels (md5) say which clip
 # frame that was. Checked:

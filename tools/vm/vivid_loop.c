@@ -5,10 +5,12 @@
 // CLIP.gray holds FRAMES frames of WIDTH x HEIGHT bytes. The first frame is shown until GO_FILE
 // exists (at most 60 s: the capture has started), then the clip runs, each frame queued HOLD
 // times (default 1). With PROGRESS, the pose file of a consumer writing one line per processed
-// frame (epitrack-device --poses), a clip frame is held further until that file has grown by two
-// lines after the HOLD periods: the first may be a frame processed from before, the second is
-// from a frame captured after this one was on show (the consumer drops stale frames), so a
+// frame (epitrack-device --poses), a clip frame is held further until that file has grown by
+// three lines after the HOLD periods: the first may be a frame processed from before, the next
+// are from frames captured after this one was on show (the consumer drops stale frames), so a
 // consumer of any speed (the tracker under emulation) processes every clip frame at least once.
+// Two lines were not enough once in five runs on an overloaded host (a clip frame skipped): the
+// third is margin for a consumer that still got a frame from before.
 // A consumer that stops writing holds a frame at most 60 s. The capture's input must be
 // chosen before anyone streams from it, hence the wait instead of starting after the capture. vivid
 // loops output to capture only between like connectors with the same format, field order and size:
@@ -189,7 +191,7 @@ int main(int argc, char** argv) {
     if (done_holding && progress != NULL) {
       const long lines = countLines(progress);
       if (lines_at_hold < 0) lines_at_hold = lines;
-      done_holding = lines >= lines_at_hold + 2 || held >= hold + 60 * 25;
+      done_holding = lines >= lines_at_hold + 3 || held >= hold + 60 * 25;
     }
     if (clip_frame == frames && done_holding) break;
     if (clip_frame == 0 && access(go_file, F_OK) != 0 && lead < 60 * 25) {

@@ -9,7 +9,7 @@
 // three lines after the HOLD periods: the first may be a frame processed from before, the next
 // are from frames captured after this one was on show (the consumer drops stale frames), so a
 // consumer of any speed (the tracker under emulation) processes every clip frame at least once.
-// Two lines were not enough once in five runs on an overloaded host (a clip frame skipped): the
+// Two lines were not enough in 2 of 5 runs on an overloaded host (a clip frame skipped): the
 // third is margin for a consumer that still got a frame from before.
 // A consumer that stops writing holds a frame at most 60 s. The capture's input must be
 // chosen before anyone streams from it, hence the wait instead of starting after the capture. vivid

@@ -312,7 +312,14 @@ int main(int argc, char** argv) {
         first_wall = now;
       } else {
         const double wall = std::chrono::duration<double>(now - first_wall).count();
-        if (wall - (frame.timestamp_s - first_t) > period_s) {
+        const double late_s = wall - (frame.timestamp_s - first_t);
+        if (late_s < 0.0) {
+          // Fresher than the first frame was: that one had waited in the driver's queue (the
+          // start after STREAMON is slow on a small board), and measuring from it would pass
+          // frames that old as current. Measure from this frame instead.
+          first_t = frame.timestamp_s;
+          first_wall = now;
+        } else if (late_s > period_s) {
           ++stats.dropped;
           continue;
         }

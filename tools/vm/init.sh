@@ -7,7 +7,7 @@ export PATH=/bin:/sbin
 mount -t proc proc /proc
 mount -t sysfs sysfs /sys
 mount -t devtmpfs devtmpfs /dev
-mount -t tmpfs -o size=85% tmpfs /tmp # the clip check records about 300 MB of frames
+mount -t tmpfs -o size=85% tmpfs /tmp # clip-loop records about 300 MB, a live clip 100 MB
 echo "VMBOOT kernel $(uname -r), up $(cut -d' ' -f1 /proc/uptime) s"
 
 # No depmod on the build host: the order is each module's "depends=" (strings X.ko) resolved by

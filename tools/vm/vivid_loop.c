@@ -1,9 +1,17 @@
 // vivid-loop: plays a raw 8-bit gray clip into vivid's video output device with vivid's video loop
 // on, so that its capture device delivers the clip's frames through the kernel
 // (tools/vm/checks.sh).
-//   vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES GO_FILE
+//   vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES GO_FILE [HOLD [PROGRESS]]
 // CLIP.gray holds FRAMES frames of WIDTH x HEIGHT bytes. The first frame is shown until GO_FILE
-// exists (at most 60 s: the capture has started), then the clip runs. The capture's input must be
+// exists (at most 60 s: the capture has started), then the clip runs, each frame queued HOLD
+// times (default 1). With PROGRESS, the pose file of a consumer writing one line per processed
+// frame (epitrack-device --poses), a clip frame is held further until that file has grown by
+// three lines after the HOLD periods: the first may be a frame processed from before, the next
+// are from frames captured after this one was on show (the consumer drops stale frames), so a
+// consumer of any speed (the tracker under emulation) processes every clip frame at least once.
+// Two lines were not enough in 2 of 5 runs on an overloaded host (a clip frame skipped): the
+// third is margin for a consumer that still got a frame from before.
+// A consumer that stops writing holds a frame at most 60 s. The capture's input must be
 // chosen before anyone streams from it, hence the wait instead of starting after the capture. vivid
 // loops output to capture only between like connectors with the same format, field order and size:
 // both are switched to S-Video, GREY, the same field order, and its on-screen text is turned off
@@ -98,16 +106,35 @@ static int selectSvideo(int fd, int output) {
   return -1;
 }
 
+// Lines (newlines) in PATH so far, read incrementally (the file only grows); 0 while it is absent.
+static long countLines(const char* path) {
+  static long lines = 0;
+  static off_t offset = 0;
+  const int fd = open(path, O_RDONLY);
+  if (fd < 0) return lines;
+  char buffer[4096];
+  ssize_t n;
+  while ((n = pread(fd, buffer, sizeof(buffer), offset)) > 0) {
+    for (ssize_t i = 0; i < n; ++i) lines += buffer[i] == '\n';
+    offset += n;
+  }
+  close(fd);
+  return lines;
+}
+
 int main(int argc, char** argv) {
-  if (argc != 8) {
+  if (argc < 8 || argc > 10) {
     fprintf(stderr,
-            "usage: vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES LEAD\n");
+            "usage: vivid-loop CAPTURE_DEV OUTPUT_DEV WIDTH HEIGHT CLIP.gray FRAMES GO_FILE "
+            "[HOLD [PROGRESS]]\n");
     return 2;
   }
+  const char* progress = argc == 10 ? argv[9] : NULL;
   const int width = atoi(argv[3]), height = atoi(argv[4]), frames = atoi(argv[6]);
   const char* go_file = argv[7];
-  if (width <= 0 || height <= 0 || frames <= 0) {
-    fprintf(stderr, "vivid-loop: bad size or frame count\n");
+  const int hold = argc == 9 ? atoi(argv[8]) : 1;
+  if (width <= 0 || height <= 0 || frames <= 0 || hold <= 0 || hold > 1000) {
+    fprintf(stderr, "vivid-loop: bad size, frame count or hold\n");
     return 2;
   }
   const size_t frame_bytes = (size_t)width * (size_t)height;
@@ -155,13 +182,26 @@ int main(int argc, char** argv) {
   }
   const unsigned buffers = req.count < kBuffers ? req.count : kBuffers;
   int streaming = 0;
-  int lead = 0;  // periods frame 0 was shown before GO_FILE appeared
-  int clip_frame = 0;
-  for (int k = 0; clip_frame < frames; ++k) {
+  int lead = 0;             // periods frame 0 was shown before GO_FILE appeared
+  int clip_frame = 0;       // 1 + the clip frame queued last; 0 while frame 0 leads
+  int held = 0;             // times the current clip frame was queued
+  long lines_at_hold = -1;  // PROGRESS's lines when the current frame had been held HOLD times
+  for (int k = 0;; ++k) {
+    int done_holding = held >= hold;
+    if (done_holding && progress != NULL) {
+      const long lines = countLines(progress);
+      if (lines_at_hold < 0) lines_at_hold = lines;
+      done_holding = lines >= lines_at_hold + 3 || held >= hold + 60 * 25;
+    }
+    if (clip_frame == frames && done_holding) break;
     if (clip_frame == 0 && access(go_file, F_OK) != 0 && lead < 60 * 25) {
       ++lead;
-    } else {
+    } else if (clip_frame == 0 || done_holding) {
       ++clip_frame;
+      held = 1;
+      lines_at_hold = -1;
+    } else {
+      ++held;
     }
     const unsigned char* src = clip + frame_bytes * (size_t)(clip_frame == 0 ? 0 : clip_frame - 1);
     struct v4l2_buffer b = {.type = V4L2_BUF_TYPE_VIDEO_OUTPUT, .memory = V4L2_MEMORY_MMAP};

@@ -138,15 +138,18 @@ double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
   return cost;
 }
 
-BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
-                                              std::span<const uint8_t> camera_fixed,
-                                              std::span<Eigen::Vector3d> points,
-                                              std::span<const uint8_t> points_fixed,
-                                              std::span<const BaObservation> observations,
-                                              BaIntrinsics& k,
-                                              const BundleAdjustmentOptions& options) {
-  using Status = BundleAdjustmentSummary::Status;
-  BundleAdjustmentSummary summary;
+namespace {
+bool pointIsFixed(std::span<const uint8_t> points_fixed, int p) {
+  return !points_fixed.empty() && points_fixed[static_cast<std::size_t>(p)] != 0;
+}
+}  // namespace
+
+bool BundleAdjuster::validInput(std::span<const BaCamera> cameras,
+                                std::span<const uint8_t> camera_fixed,
+                                std::span<const Eigen::Vector3d> points,
+                                std::span<const uint8_t> points_fixed,
+                                std::span<const BaObservation> observations,
+                                const BundleAdjustmentOptions& options) const {
   const auto nc = static_cast<int>(cameras.size());
   const auto np = static_cast<int>(points.size());
   const auto no = static_cast<int>(observations.size());
@@ -154,26 +157,36 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
       camera_fixed.size() != cameras.size() ||
       (!points_fixed.empty() && points_fixed.size() != points.size()) ||
       options.refine_distortion < 0 || options.refine_distortion > 2) {
-    return summary;
+    return false;
   }
   for (const BaObservation& o : observations) {
     if (o.camera < 0 || o.camera >= nc || o.point < 0 || o.point >= np || !o.xy.allFinite())
-      return summary;
+      return false;
   }
+  return true;
+}
+
+BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> camera_fixed,
+                                                   std::span<const BaObservation> observations,
+                                                   int np, const BundleAdjustmentOptions& options) {
+  Layout L;
+  L.nc = static_cast<int>(camera_fixed.size());
+  L.np = np;
+  L.no = static_cast<int>(observations.size());
+  const int nc = L.nc, no = L.no;
   // Reduced-system layout: 6 per free camera, then the intrinsics.
   int n_free = 0;
   for (int c = 0; c < nc; ++c)
     camera_slot_[static_cast<std::size_t>(c)] =
         camera_fixed[static_cast<std::size_t>(c)] != 0 ? -1 : 6 * n_free++;
-  const int nk = (options.refine_focal ? 1 : 0) + options.refine_distortion;
-  const int k0 = 6 * n_free;  // first intrinsics index
-  const int n = k0 + nk;
+  L.nk = (options.refine_focal ? 1 : 0) + options.refine_distortion;
+  L.k0 = 6 * n_free;  // first intrinsics index
+  L.n = L.k0 + L.nk;
   // Which intrinsics columns (f, k1, k2) are refined, in order.
-  int kcol[3] = {0, 0, 0};
   {
     int j = 0;
-    if (options.refine_focal) kcol[j++] = 0;
-    for (int d = 0; d < options.refine_distortion; ++d) kcol[j++] = 1 + d;
+    if (options.refine_focal) L.kcol[j++] = 0;
+    for (int d = 0; d < options.refine_distortion; ++d) L.kcol[j++] = 1 + d;
   }
   // Observations grouped by point (CSR).
   std::fill(point_obs_offset_.begin(), point_obs_offset_.begin() + np + 1, 0);
@@ -188,9 +201,6 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
     const auto p = static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].point);
     point_obs_index_[static_cast<std::size_t>(point_obs_cursor_[p]++)] = i;
   }
-  const auto pointFixed = [&](int p) {
-    return !points_fixed.empty() && points_fixed[static_cast<std::size_t>(p)] != 0;
-  };
   // Each point's observations by free cameras, sorted by slot (insertion sort: a few dozen each).
   for (int p = 0; p < np; ++p) {
     const int begin = point_obs_offset_[static_cast<std::size_t>(p)];
@@ -210,7 +220,204 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
     }
     pair_end_[static_cast<std::size_t>(p)] = end;
   }
+  return L;
+}
 
+void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
+                               std::span<const Eigen::Vector3d> points,
+                               std::span<const BaObservation> observations, const BaIntrinsics& k,
+                               const BundleAdjustmentOptions& options, const Layout& L) {
+  const int n = L.n, np = L.np, no = L.no, nk = L.nk, k0 = L.k0;
+  const int* kcol = L.kcol;
+  // -- linearise: U (in S), g_c (in rhs), V, g_p, and the coupling blocks --
+  Eigen::MatrixXd& H = S_;
+  H.topLeftCorner(n, n).setZero();
+  Eigen::VectorXd& g = rhs_;
+  g.head(n).setZero();
+  for (int p = 0; p < np; ++p) {
+    V_[static_cast<std::size_t>(p)].setZero();
+    gp_[static_cast<std::size_t>(p)].setZero();
+  }
+  for (int i = 0; i < no; ++i) {
+    const BaObservation& o = observations[static_cast<std::size_t>(i)];
+    const auto pi = static_cast<std::size_t>(o.point);
+    Eigen::Vector2d uv;
+    Eigen::Matrix<double, 2, 6> Jc;
+    Eigen::Matrix<double, 2, 3> Jp;
+    Eigen::Matrix<double, 2, 3> Jk_all;
+    Wc_[static_cast<std::size_t>(i)].setZero();
+    Wk_[static_cast<std::size_t>(i)].setZero();
+    if (!projectWithJacobians(cameras[static_cast<std::size_t>(o.camera)], k, points[pi], uv, Jc,
+                              Jp, Jk_all))
+      continue;
+    const Eigen::Vector2d r = uv - o.xy;
+    const double w = huberWeight(r.norm(), options.huber_px);
+    Eigen::Matrix<double, 2, 3> Jk = Eigen::Matrix<double, 2, 3>::Zero();
+    for (int j = 0; j < nk; ++j) Jk.col(j) = Jk_all.col(kcol[j]);
+    const int s = camera_slot_[static_cast<std::size_t>(o.camera)];
+    if (s >= 0) {
+      H.block<6, 6>(s, s) += w * Jc.transpose() * Jc;
+      g.segment<6>(s) += w * Jc.transpose() * r;
+      Wc_[static_cast<std::size_t>(i)] = w * Jc.transpose() * Jp;
+      if (nk > 0) H.block(s, k0, 6, nk) += w * Jc.transpose() * Jk.leftCols(nk);
+    }
+    if (nk > 0) {
+      H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
+      g.segment(k0, nk) += w * Jk.leftCols(nk).transpose() * r;
+      Wk_[static_cast<std::size_t>(i)] = w * Jk.transpose() * Jp;
+    }
+    V_[pi] += w * Jp.transpose() * Jp;
+    gp_[pi] += w * Jp.transpose() * r;
+  }
+  // Symmetrise the camera-intrinsics coupling.
+  if (nk > 0) {
+    for (int c = 0; c < k0; ++c)
+      for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
+  }
+  for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+  for (int p = 0; p < np; ++p) {
+    for (int e = point_obs_offset_[static_cast<std::size_t>(p)];
+         e < pair_end_[static_cast<std::size_t>(p)]; ++e)
+      pair_Wc_[static_cast<std::size_t>(e)] =
+          Wc_[static_cast<std::size_t>(pair_obs_[static_cast<std::size_t>(e)])];
+  }
+}
+
+bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed,
+                                        const Layout& L) {
+  const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
+  const Eigen::MatrixXd& H = S_;
+  const Eigen::VectorXd& g = rhs_;
+  // Reduced camera system: (U + lambda D) - sum_p W_p (V_p + lambda D_p)^-1 W_p^T, rebuilt from
+  // the undamped blocks at each attempt, in the preallocated A_ / b_.
+  auto A = A_.topLeftCorner(n, n);
+  A = H.topLeftCorner(n, n);
+  for (int i = 0; i < n; ++i) A(i, i) = diag_(i) * (1.0 + lambda) + 1e-12;
+  auto b = b_.head(n);
+  b = -g.head(n);
+  for (int p = 0; p < np; ++p) {
+    if (pointIsFixed(points_fixed, p)) continue;
+    const auto pp = static_cast<std::size_t>(p);
+    Eigen::Matrix3d Vd = V_[pp];
+    for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
+    const Eigen::Matrix3d Vinv = Vd.inverse();
+    Vinv_[pp] = Vinv;
+    const int begin = point_obs_offset_[pp];
+    const int end = point_obs_offset_[pp + 1];
+    Eigen::Matrix3d Wk_sum = Eigen::Matrix3d::Zero();
+    for (int a = begin; a < end; ++a)
+      Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+    const Eigen::Vector3d Vg = Vinv * gp_[pp];
+    const int pair_end = pair_end_[pp];
+    for (int e = begin; e < pair_end; ++e) {
+      const auto ee = static_cast<std::size_t>(e);
+      pair_WV_[ee] = pair_Wc_[ee] * Vinv;
+      const int sa = pair_slot_[ee];
+      b.segment<6>(sa) += pair_WV_[ee] * gp_[pp];
+      if (nk > 0) A.block(sa, k0, 6, nk) -= (pair_WV_[ee] * Wk_sum.transpose()).leftCols(nk);
+    }
+    // Upper triangle (sb >= sa), mirrored below; a camera seen twice pairs with both copies.
+    int group = begin;  // first entry of the current slot
+    for (int e = begin; e < pair_end; ++e) {
+      const auto ee = static_cast<std::size_t>(e);
+      const int sa = pair_slot_[ee];
+      if (pair_slot_[static_cast<std::size_t>(group)] != sa) group = e;
+      for (int f = group; f < pair_end; ++f) {
+        const auto ff = static_cast<std::size_t>(f);
+        A.block<6, 6>(sa, pair_slot_[ff]) -= pair_WV_[ee] * pair_Wc_[ff].transpose();
+      }
+    }
+    if (nk > 0) {
+      A.block(k0, k0, nk, nk) -= (Wk_sum * Vinv * Wk_sum.transpose()).topLeftCorner(nk, nk);
+      b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
+    }
+  }
+  // Mirror the upper triangle.
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j) A(j, i) = A(i, j);
+  // In-place Cholesky (the damped reduced system is positive definite); no allocation.
+  Eigen::Ref<Eigen::MatrixXd> A_ref(A);
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(A_ref);
+  auto dc = delta_.head(n);
+  dc = b;
+  if (llt.info() == Eigen::Success) llt.solveInPlace(dc);
+  return llt.info() == Eigen::Success && dc.allFinite();
+}
+
+double BundleAdjuster::backSubstitute(std::span<const BaObservation> observations,
+                                      std::span<const uint8_t> points_fixed, const Layout& L) {
+  const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
+  const auto dc = delta_.head(n);
+  // Back-substitution: dp = V^-1 (-g_p - W^T dc).
+  double step2 = dc.squaredNorm();
+  for (int p = 0; p < np; ++p) {
+    const auto pp = static_cast<std::size_t>(p);
+    if (pointIsFixed(points_fixed, p)) {
+      dp_[pp].setZero();
+      continue;
+    }
+    Eigen::Vector3d rhs = -gp_[pp];
+    for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a) {
+      const int ia = point_obs_index_[static_cast<std::size_t>(a)];
+      const int sa =
+          camera_slot_[static_cast<std::size_t>(observations[static_cast<std::size_t>(ia)].camera)];
+      if (sa >= 0) rhs -= Wc_[static_cast<std::size_t>(ia)].transpose() * dc.segment<6>(sa);
+      if (nk > 0)
+        rhs -= Wk_[static_cast<std::size_t>(ia)].topRows(nk).transpose() * dc.segment(k0, nk);
+    }
+    dp_[pp] = Vinv_[pp] * rhs;
+    step2 += dp_[pp].squaredNorm();
+  }
+  return step2;
+}
+
+void BundleAdjuster::applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points,
+                               BaIntrinsics& k, const Layout& L) {
+  const int nc = L.nc, np = L.np, nk = L.nk, k0 = L.k0;
+  const int* kcol = L.kcol;
+  const auto dc = delta_.head(L.n);
+  // Back up, then step.
+  for (int c = 0; c < nc; ++c)
+    cameras_backup_[static_cast<std::size_t>(c)] = cameras[static_cast<std::size_t>(c)];
+  for (int p = 0; p < np; ++p)
+    points_backup_[static_cast<std::size_t>(p)] = points[static_cast<std::size_t>(p)];
+  k_backup_ = k;
+  for (int c = 0; c < nc; ++c) {
+    const int s = camera_slot_[static_cast<std::size_t>(c)];
+    if (s < 0) continue;
+    BaCamera& cam = cameras[static_cast<std::size_t>(c)];
+    // x_c = exp([dtheta]x) R X + t + dt (the parametrisation of the Jacobians).
+    cam.R_cw = expSo3(dc.segment<3>(s)) * cam.R_cw;
+    cam.t_cw += dc.segment<3>(s + 3);
+  }
+  for (int p = 0; p < np; ++p)
+    points[static_cast<std::size_t>(p)] += dp_[static_cast<std::size_t>(p)];
+  for (int j = 0; j < nk; ++j) {
+    const double v = dc(k0 + j);
+    if (kcol[j] == 0) k.f += v;
+    if (kcol[j] == 1) k.k1 += v;
+    if (kcol[j] == 2) k.k2 += v;
+  }
+}
+
+void BundleAdjuster::undoStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points) {
+  for (std::size_t c = 0; c < cameras.size(); ++c) cameras[c] = cameras_backup_[c];
+  for (std::size_t p = 0; p < points.size(); ++p) points[p] = points_backup_[p];
+}
+
+BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
+                                              std::span<const uint8_t> camera_fixed,
+                                              std::span<Eigen::Vector3d> points,
+                                              std::span<const uint8_t> points_fixed,
+                                              std::span<const BaObservation> observations,
+                                              BaIntrinsics& k,
+                                              const BundleAdjustmentOptions& options) {
+  using Status = BundleAdjustmentSummary::Status;
+  BundleAdjustmentSummary summary;
+  if (!validInput(cameras, camera_fixed, points, points_fixed, observations, options))
+    return summary;
+  const Layout L =
+      buildLayout(camera_fixed, observations, static_cast<int>(points.size()), options);
   double rms = 0.0;
   double cost = evaluateCost(cameras, points, observations, k, options.huber_px, &rms);
   summary.initial_cost = cost;
@@ -223,118 +430,13 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
   summary.status = Status::kMaxIterations;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     summary.iterations = iter + 1;
-    // -- linearise: U (in S), g_c (in rhs), V, g_p, and the coupling blocks --
-    Eigen::MatrixXd& H = S_;
-    H.topLeftCorner(n, n).setZero();
-    Eigen::VectorXd& g = rhs_;
-    g.head(n).setZero();
-    for (int p = 0; p < np; ++p) {
-      V_[static_cast<std::size_t>(p)].setZero();
-      gp_[static_cast<std::size_t>(p)].setZero();
-    }
-    for (int i = 0; i < no; ++i) {
-      const BaObservation& o = observations[static_cast<std::size_t>(i)];
-      const auto pi = static_cast<std::size_t>(o.point);
-      Eigen::Vector2d uv;
-      Eigen::Matrix<double, 2, 6> Jc;
-      Eigen::Matrix<double, 2, 3> Jp;
-      Eigen::Matrix<double, 2, 3> Jk_all;
-      Wc_[static_cast<std::size_t>(i)].setZero();
-      Wk_[static_cast<std::size_t>(i)].setZero();
-      if (!projectWithJacobians(cameras[static_cast<std::size_t>(o.camera)], k, points[pi], uv, Jc,
-                                Jp, Jk_all))
-        continue;
-      const Eigen::Vector2d r = uv - o.xy;
-      const double w = huberWeight(r.norm(), options.huber_px);
-      Eigen::Matrix<double, 2, 3> Jk = Eigen::Matrix<double, 2, 3>::Zero();
-      for (int j = 0; j < nk; ++j) Jk.col(j) = Jk_all.col(kcol[j]);
-      const int s = camera_slot_[static_cast<std::size_t>(o.camera)];
-      if (s >= 0) {
-        H.block<6, 6>(s, s) += w * Jc.transpose() * Jc;
-        g.segment<6>(s) += w * Jc.transpose() * r;
-        Wc_[static_cast<std::size_t>(i)] = w * Jc.transpose() * Jp;
-        if (nk > 0) H.block(s, k0, 6, nk) += w * Jc.transpose() * Jk.leftCols(nk);
-      }
-      if (nk > 0) {
-        H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
-        g.segment(k0, nk) += w * Jk.leftCols(nk).transpose() * r;
-        Wk_[static_cast<std::size_t>(i)] = w * Jk.transpose() * Jp;
-      }
-      V_[pi] += w * Jp.transpose() * Jp;
-      gp_[pi] += w * Jp.transpose() * r;
-    }
-    // Symmetrise the camera-intrinsics coupling.
-    if (nk > 0) {
-      for (int c = 0; c < k0; ++c)
-        for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
-    }
-    for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
-    for (int p = 0; p < np; ++p) {
-      for (int e = point_obs_offset_[static_cast<std::size_t>(p)];
-           e < pair_end_[static_cast<std::size_t>(p)]; ++e)
-        pair_Wc_[static_cast<std::size_t>(e)] =
-            Wc_[static_cast<std::size_t>(pair_obs_[static_cast<std::size_t>(e)])];
-    }
-    const double grad_norm = g.head(n).norm();
-
-    // -- damped solves until a step lowers the cost --
+    linearize(cameras, points, observations, k, options, L);
+    const double grad_norm = rhs_.head(L.n).norm();
+    // Damped solves until a step lowers the cost (Levenberg-Marquardt).
     bool accepted = false;
     bool stop = false;
     while (!accepted) {
-      // Reduced camera system: (U + lambda D) - sum_p W_p (V_p + lambda D_p)^-1 W_p^T, rebuilt from
-      // the undamped blocks at each attempt, in the preallocated A_ / b_.
-      auto A = A_.topLeftCorner(n, n);
-      A = H.topLeftCorner(n, n);
-      for (int i = 0; i < n; ++i) A(i, i) = diag_(i) * (1.0 + lambda) + 1e-12;
-      auto b = b_.head(n);
-      b = -g.head(n);
-      for (int p = 0; p < np; ++p) {
-        if (pointFixed(p)) continue;
-        const auto pp = static_cast<std::size_t>(p);
-        Eigen::Matrix3d Vd = V_[pp];
-        for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
-        const Eigen::Matrix3d Vinv = Vd.inverse();
-        Vinv_[pp] = Vinv;
-        const int begin = point_obs_offset_[pp];
-        const int end = point_obs_offset_[pp + 1];
-        Eigen::Matrix3d Wk_sum = Eigen::Matrix3d::Zero();
-        for (int a = begin; a < end; ++a)
-          Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
-        const Eigen::Vector3d Vg = Vinv * gp_[pp];
-        const int pair_end = pair_end_[pp];
-        for (int e = begin; e < pair_end; ++e) {
-          const auto ee = static_cast<std::size_t>(e);
-          pair_WV_[ee] = pair_Wc_[ee] * Vinv;
-          const int sa = pair_slot_[ee];
-          b.segment<6>(sa) += pair_WV_[ee] * gp_[pp];
-          if (nk > 0) A.block(sa, k0, 6, nk) -= (pair_WV_[ee] * Wk_sum.transpose()).leftCols(nk);
-        }
-        // Upper triangle (sb >= sa), mirrored below; a camera seen twice pairs with both copies.
-        int group = begin;  // first entry of the current slot
-        for (int e = begin; e < pair_end; ++e) {
-          const auto ee = static_cast<std::size_t>(e);
-          const int sa = pair_slot_[ee];
-          if (pair_slot_[static_cast<std::size_t>(group)] != sa) group = e;
-          for (int f = group; f < pair_end; ++f) {
-            const auto ff = static_cast<std::size_t>(f);
-            A.block<6, 6>(sa, pair_slot_[ff]) -= pair_WV_[ee] * pair_Wc_[ff].transpose();
-          }
-        }
-        if (nk > 0) {
-          A.block(k0, k0, nk, nk) -= (Wk_sum * Vinv * Wk_sum.transpose()).topLeftCorner(nk, nk);
-          b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
-        }
-      }
-      // Mirror the upper triangle.
-      for (int i = 0; i < n; ++i)
-        for (int j = i + 1; j < n; ++j) A(j, i) = A(i, j);
-      // In-place Cholesky (the damped reduced system is positive definite); no allocation.
-      Eigen::Ref<Eigen::MatrixXd> A_ref(A);
-      const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(A_ref);
-      auto dc = delta_.head(n);
-      dc = b;
-      if (llt.info() == Eigen::Success) llt.solveInPlace(dc);
-      if (llt.info() != Eigen::Success || !dc.allFinite()) {
+      if (!solveReducedSystem(lambda, points_fixed, L)) {
         lambda *= 10.0;
         if (lambda > 1e12) {
           summary.status = Status::kNumericalFailure;
@@ -343,48 +445,8 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
         }
         continue;
       }
-      // Back-substitution: dp = V^-1 (-g_p - W^T dc).
-      double step2 = dc.squaredNorm();
-      for (int p = 0; p < np; ++p) {
-        const auto pp = static_cast<std::size_t>(p);
-        if (pointFixed(p)) {
-          dp_[pp].setZero();
-          continue;
-        }
-        Eigen::Vector3d rhs = -gp_[pp];
-        for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a) {
-          const int ia = point_obs_index_[static_cast<std::size_t>(a)];
-          const int sa = camera_slot_[static_cast<std::size_t>(
-              observations[static_cast<std::size_t>(ia)].camera)];
-          if (sa >= 0) rhs -= Wc_[static_cast<std::size_t>(ia)].transpose() * dc.segment<6>(sa);
-          if (nk > 0)
-            rhs -= Wk_[static_cast<std::size_t>(ia)].topRows(nk).transpose() * dc.segment(k0, nk);
-        }
-        dp_[pp] = Vinv_[pp] * rhs;
-        step2 += dp_[pp].squaredNorm();
-      }
-      // Try the step.
-      for (int c = 0; c < nc; ++c)
-        cameras_backup_[static_cast<std::size_t>(c)] = cameras[static_cast<std::size_t>(c)];
-      for (int p = 0; p < np; ++p)
-        points_backup_[static_cast<std::size_t>(p)] = points[static_cast<std::size_t>(p)];
-      const BaIntrinsics k_backup = k;
-      for (int c = 0; c < nc; ++c) {
-        const int s = camera_slot_[static_cast<std::size_t>(c)];
-        if (s < 0) continue;
-        BaCamera& cam = cameras[static_cast<std::size_t>(c)];
-        // x_c = exp([dtheta]x) R X + t + dt (the parametrisation of the Jacobians).
-        cam.R_cw = expSo3(dc.segment<3>(s)) * cam.R_cw;
-        cam.t_cw += dc.segment<3>(s + 3);
-      }
-      for (int p = 0; p < np; ++p)
-        points[static_cast<std::size_t>(p)] += dp_[static_cast<std::size_t>(p)];
-      for (int j = 0; j < nk; ++j) {
-        const double v = dc(k0 + j);
-        if (kcol[j] == 0) k.f += v;
-        if (kcol[j] == 1) k.k1 += v;
-        if (kcol[j] == 2) k.k2 += v;
-      }
+      const double step2 = backSubstitute(observations, points_fixed, L);
+      applyStep(cameras, points, k, L);
       double new_rms = 0.0;
       const double new_cost =
           evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
@@ -395,20 +457,16 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
         lambda = std::max(lambda / 3.0, 1e-15);
         accepted = true;
         double scale2 = 0.0;
-        for (int p = 0; p < np; ++p) scale2 += points[static_cast<std::size_t>(p)].squaredNorm();
-        for (int c = 0; c < nc; ++c)
-          scale2 += cameras[static_cast<std::size_t>(c)].t_cw.squaredNorm();
+        for (std::size_t p = 0; p < points.size(); ++p) scale2 += points[p].squaredNorm();
+        for (const BaCamera& c : cameras) scale2 += c.t_cw.squaredNorm();
         if (decrease < options.function_tolerance ||
             step2 <= options.step_tolerance * options.step_tolerance * (scale2 + 1e-300)) {
           summary.status = Status::kConverged;
           stop = true;
         }
       } else {
-        for (int c = 0; c < nc; ++c)
-          cameras[static_cast<std::size_t>(c)] = cameras_backup_[static_cast<std::size_t>(c)];
-        for (int p = 0; p < np; ++p)
-          points[static_cast<std::size_t>(p)] = points_backup_[static_cast<std::size_t>(p)];
-        k = k_backup;
+        undoStep(cameras, points);
+        k = k_backup_;
         lambda *= 4.0;
         if (lambda > 1e12 || grad_norm < 1e-14) {
           summary.status = Status::kConverged;  // no step improves: at a minimum

@@ -95,6 +95,39 @@ class BundleAdjuster {
                                    Eigen::Matrix<double, 2, 3>& J_intr);
 
  private:
+  /// The reduced system's layout of one solve: 6 parameters per free camera, then the refined
+  /// intrinsics (f, k1, k2 as `kcol` lists them).
+  struct Layout {
+    int nc = 0, np = 0, no = 0;  // cameras, points, observations
+    int nk = 0;                  // intrinsics refined
+    int k0 = 0;                  // their first index (6 x free cameras)
+    int n = 0;                   // reduced-system size
+    int kcol[3] = {0, 0, 0};
+  };
+  bool validInput(std::span<const BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+                  std::span<const Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+                  std::span<const BaObservation> observations,
+                  const BundleAdjustmentOptions& options) const;
+  /// Camera slots, observations grouped by point (CSR) and, per point, by free camera slot.
+  Layout buildLayout(std::span<const uint8_t> camera_fixed,
+                     std::span<const BaObservation> observations, int np,
+                     const BundleAdjustmentOptions& options);
+  /// The undamped normal equations at the current parameters: U and g_c (S_, rhs_), V and g_p
+  /// per point, the coupling blocks W per observation; diag_ holds U's diagonal.
+  void linearize(std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
+                 std::span<const BaObservation> observations, const BaIntrinsics& k,
+                 const BundleAdjustmentOptions& options, const Layout& L);
+  /// The damped Schur complement for `lambda` solved for the camera and intrinsics step
+  /// (delta_); false when it is not positive definite.
+  bool solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed, const Layout& L);
+  /// The points' step dp_ = V^-1 (-g_p - W^T dc); returns the squared norm of the whole step.
+  double backSubstitute(std::span<const BaObservation> observations,
+                        std::span<const uint8_t> points_fixed, const Layout& L);
+  /// Applies delta_ and dp_ (backing the parameters up first).
+  void applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points, BaIntrinsics& k,
+                 const Layout& L);
+  /// Restores the parameters applyStep backed up.
+  void undoStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points);
   double evaluateCost(std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
                       std::span<const BaObservation> observations, const BaIntrinsics& k,
                       double huber, double* rms) const;
@@ -129,6 +162,7 @@ class BundleAdjuster {
   Eigen::VectorXd b_;
   Eigen::VectorXd delta_;
   Eigen::VectorXd diag_;
+  BaIntrinsics k_backup_;
 };
 
 }  // namespace epitrack

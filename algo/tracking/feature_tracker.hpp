@@ -125,6 +125,12 @@ struct FeatureTrackerOptions {
   /// acceleration); this fraction of it is added to every track's velocity (1: the camera keeps
   /// its new velocity, as a pan or a vehicle does; 0: it returns, as shake does).
   double motion_velocity_gain = 1.0;
+  /// The fitted motion is used when at least motion_clear_majority of the probed anchors are its
+  /// inliers, or motion_min_inlier_fraction of them and it moves some image corner by at least
+  /// motion_min_shift_px; else the frame keeps each track's own prediction (see the .cpp).
+  double motion_clear_majority = 0.7;
+  double motion_min_inlier_fraction = 0.5;
+  double motion_min_shift_px = 5.0;
   GlobalMotionOptions motion{};
   /// When more than this fraction of the tracks judged by the gate (at least gate_release_min)
   /// fail it in one frame, the frame moved, not the tracks: the gate is not applied that frame.

@@ -76,6 +76,11 @@ int main(int argc, char** argv) {
   cl.text("mask", "PGM|DIR", "zero pixels are never tracked (one image, or one per frame)",
           &mask_spec);
   cl.flag("no-kalman", "disable the Kalman gate", &no_kalman);
+  bool no_global_motion = false;
+  cl.flag("no-global-motion",
+          "no per-frame camera motion model: each track predicted from its own velocity alone "
+          "(docs/tracker.md; the model is on by default)",
+          &no_global_motion);
   bool epipolar = false;
   cl.flag("epipolar",
           "the epipolar check: drop tracks that stay off the rigid two-view relation (F, or H "
@@ -132,6 +137,7 @@ int main(int argc, char** argv) {
   if (o.window % 2 == 0) return cl.usageError("--window must be odd");
   if (whole_window) o.wholeWindow();
   o.kalman_gate = !no_kalman;
+  o.global_motion = !no_global_motion;
   o.epipolar_check = epipolar;
   o.affine = !translation_only;
   epitrack::tools::Matcher matcher = epitrack::tools::Matcher::kAuto;

@@ -1,5 +1,7 @@
 #include "algo/tracking/feature_tracker.hpp"
 
+#include "algo/image/frame_difference.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -492,6 +494,45 @@ void FeatureTracker::predictAll() {
   }
 }
 
+void FeatureTracker::publishTracks() {
+  output_count_ = 0;
+  for (const Track& t : tracks_) {
+    if (t.live)
+      output_[static_cast<std::size_t>(output_count_++)] = TrackedFeature{t.id, t.x, t.y, t.age};
+  }
+  stats_.tracked = output_count_;
+}
+
+void FeatureTracker::keepRepeatedFrame() {
+  // The same picture again: nothing moved, so every track stays where it is and no filter sees
+  // the frame (a Kalman update with a zero displacement would halve each track's velocity, and
+  // the prediction of the next new frame would miss by half a frame's motion: on KITTI with every
+  // frame twice, the live map never initialised). The earlier pyramid stays the reference, so a
+  // run of near-equal frames is compared with its first frame, not frame to frame.
+  current_ = 1 - current_;
+  stats_.repeated = 1;
+  // A track is kept only where the picture has texture: the repeat of a featureless frame (a
+  // covered lens, a blank wall) must not hold the tracks LK carried onto it for as long as it
+  // lasts (a camera that seems to stand still: a silent wrong solve). LK drops them on the next
+  // frame that differs; the template test of the spare slot drops them here.
+  const int check_slot = options_.max_features;
+  for (Track& t : tracks_) {
+    if (!t.live ||
+        lk_.setTemplate(check_slot, pyramids_[current_], t.x, t.y) != LkStatus::kLowTexture) {
+      continue;
+    }
+    ++stats_.lost_lk;
+    ++stats_.lost_low_texture;
+    t.live = false;
+    --live_count_;
+    lost_[static_cast<std::size_t>(lost_count_++)] =
+        LostTrack{t.id, t.x, t.y, t.age, TrackLoss::kLowTexture};
+  }
+  publishTracks();
+  ++frame_index_;
+  skipped_frames_ = 0;
+}
+
 FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
                                              ImageView<const uint8_t> mask) {
   if (pyramids_[0].levelCount() == 0) return Status::kNotConfigured;
@@ -503,6 +544,12 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   auto t0 = stageNow();
   pyramids_[current_].build(frame);
   stats_.pyramid_ms = msSince(t0);
+  if (frame_index_ > 0 && options_.repeat_max_mean_diff_q8 > 0 &&
+      framesNearlyEqual(pyramids_[current_].level(0), pyramids_[1 - current_].level(0),
+                        options_.repeat_max_mean_diff_q8)) {
+    keepRepeatedFrame();
+    return Status::kOk;
+  }
 
   if (frame_index_ > 0) {
     lk_.resetCounters();
@@ -564,12 +611,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
     frames_since_detect_ = 0;
   }
 
-  output_count_ = 0;
-  for (const Track& t : tracks_) {
-    if (t.live)
-      output_[static_cast<std::size_t>(output_count_++)] = TrackedFeature{t.id, t.x, t.y, t.age};
-  }
-  stats_.tracked = output_count_;
+  publishTracks();
   double cx = 0.5 * width_, cy = 0.5 * height_;
   motion_.apply(0.5 * width_, 0.5 * height_, cx, cy);
   stats_.motion_dx = cx - 0.5 * width_;

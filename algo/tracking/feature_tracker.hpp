@@ -132,6 +132,10 @@ struct FeatureTrackerOptions {
   double motion_min_inlier_fraction = 0.5;
   double motion_min_shift_px = 5.0;
   GlobalMotionOptions motion{};
+  /// A frame whose mean absolute difference from the previous one is at most this many 1/256
+  /// grey levels (64: 0.25) repeats it: the tracks stay, no filter is updated, no LK runs
+  /// (framesNearlyEqual; docs/tracker.md, "Repeated frames"). 0: every frame is tracked.
+  uint32_t repeat_max_mean_diff_q8 = 64;
   /// When more than this fraction of the tracks judged by the gate (at least gate_release_min)
   /// fail it in one frame, the frame moved, not the tracks: the gate is not applied that frame.
   double gate_release_fraction = 0.5;
@@ -191,6 +195,7 @@ struct FrameStats {
   int motion_inliers = 0;  ///< ... that agree with it (0: no model, the last one kept)
   double motion_dx = 0.0;  ///< the global motion at the image centre, px
   double motion_dy = 0.0;
+  int repeated = 0;       ///< 1: the frame repeated the previous one; tracks kept, nothing aligned
   int gate_released = 0;  ///< tracks let through because the whole frame failed the gate
 };
 
@@ -258,6 +263,10 @@ class FeatureTracker {
   void epipolarCheck();
   /// Aligns track `slot` into this frame (its candidate); `young`: seen in one frame only.
   void alignOne(std::size_t slot, bool young);
+  /// The live tracks into the output array (what `features()` returns).
+  void publishTracks();
+  /// A frame equal to the previous one: tracks kept, filters untouched (see the .cpp).
+  void keepRepeatedFrame();
   /// Picks the anchors, probes them and fits this frame's global motion (motion_).
   void estimateGlobalMotion();
   /// Where anchor `t` is expected before the global motion is known: its own constant-velocity

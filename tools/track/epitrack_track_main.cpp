@@ -216,15 +216,16 @@ int main(int argc, char** argv) {
       const epitrack::FrameStats& fs = tracker->lkTracker()->lastStats();
       std::fprintf(
           stderr,
-          "frame %d: live %d, lost: left-image %d no-convergence %d low-texture %d "
+          "frame %d:%s live %d, lost: left-image %d no-convergence %d low-texture %d "
           "residual %d forward-backward %d gate %d mask %d epipolar %d; fb checks %d, refreshed "
           "%d, detected %d; residual median %.3f; motion %.1f %.1f inliers %d/%d released %d; lk "
           "iterations %ld; ms pyramid %.2f lk %.2f epipolar %.2f detect %.2f\n",
-          frames, fs.tracked, fs.lost_left_image, fs.lost_no_convergence, fs.lost_low_texture,
-          fs.lost_residual, fs.lost_forward_backward, fs.lost_gate, fs.lost_mask, fs.lost_epipolar,
-          fs.forward_backward_checks, fs.refreshed, fs.detected, fs.residual_median, fs.motion_dx,
-          fs.motion_dy, fs.motion_inliers, fs.motion_anchors, fs.gate_released, fs.lk_iterations,
-          fs.pyramid_ms, fs.lk_ms, fs.epipolar_ms, fs.detect_ms);
+          frames, fs.repeated != 0 ? " repeat," : "", fs.tracked, fs.lost_left_image,
+          fs.lost_no_convergence, fs.lost_low_texture, fs.lost_residual, fs.lost_forward_backward,
+          fs.lost_gate, fs.lost_mask, fs.lost_epipolar, fs.forward_backward_checks, fs.refreshed,
+          fs.detected, fs.residual_median, fs.motion_dx, fs.motion_dy, fs.motion_inliers,
+          fs.motion_anchors, fs.gate_released, fs.lk_iterations, fs.pyramid_ms, fs.lk_ms,
+          fs.epipolar_ms, fs.detect_ms);
     }
     ++frames;
     if (!quiet && frames % 50 == 0) {

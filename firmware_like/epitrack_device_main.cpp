@@ -16,10 +16,11 @@
 #include <vector>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/sfm/live_tracker.hpp"
 #include "firmware_like/device_config.hpp"
 #include "firmware_like/frame_statistics.hpp"
-#include "firmware_like/live_tracker.hpp"
 #include "firmware_like/pose_output.hpp"
+#include "hal/cpu/cpu_features.hpp"
 #include "hal/frame_source.hpp"
 #include "hal/io/text_formats.hpp"
 #include "hal/record/frame_recorder.hpp"
@@ -131,6 +132,7 @@ struct Override {
 }  // namespace
 
 int main(int argc, char** argv) {
+  epitrack::hal::selectKernelsForThisCpu();
   using epitrack::device::DeviceConfig;
   // ---- configuration, read once: command line (as key/value pairs), then the file under it ----
   std::vector<Override> overrides;
@@ -233,7 +235,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  epitrack::device::LiveTracker tracker(config.tracker, config.map, intrinsics);
+  epitrack::LiveTracker tracker(config.tracker, config.map, intrinsics);
   epitrack::device::FrameStatistics stats;
 
   std::FILE* out = stdout;
@@ -268,7 +270,7 @@ int main(int argc, char** argv) {
   int64_t last_index = -1;
   int exit_code = 0;
   epitrack::hal::Frame frame;
-  epitrack::device::LiveFrameOutput result;
+  epitrack::LiveFrameOutput result;
   while (g_stop_signal == 0 && (config.max_frames == 0 || stats.frames < config.max_frames)) {
     const auto status = source->next(frame);
     if (status == epitrack::hal::FrameStatus::kTimeout) continue;
@@ -325,13 +327,16 @@ int main(int argc, char** argv) {
         }
       }
     }
-    if (tracker.process(frame.luma, result) != epitrack::device::LiveTracker::Status::kOk) {
+    const auto start = std::chrono::steady_clock::now();
+    if (tracker.process(frame.luma, result) != epitrack::LiveTracker::Status::kOk) {
       std::fprintf(stderr, "epitrack-device: frame %lld is %dx%d, expected %dx%d\n",
                    static_cast<long long>(frame.index), frame.luma.width, frame.luma.height,
                    intrinsics.width, intrinsics.height);
       exit_code = 1;
       break;
     }
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     ++stats.frames;
     switch (result.map.status) {
       case epitrack::LiveStatus::kTracking:
@@ -351,10 +356,10 @@ int main(int argc, char** argv) {
                    static_cast<long long>(frame.index), focal_source, tracker.map().intrinsics().fx,
                    tracker.map().calibrationPairs());
     }
-    if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
+    if (stats.frames > config.warmup_frames) stats.addTiming(ms);
     const int n = epitrack::device::formatPoseLine(
         line, sizeof(line), frame.index, record_frame, frame.timestamp_s, result.map.status,
-        result.features, result.map.pose, result.ms, result.map.init);
+        result.features, result.map.pose, ms, result.map.init);
     if (n > 0 && static_cast<std::size_t>(n) < sizeof(line))
       std::fwrite(line, 1, static_cast<std::size_t>(n), out);
   }

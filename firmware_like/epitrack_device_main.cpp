@@ -16,10 +16,11 @@
 #include <vector>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/sfm/live_tracker.hpp"
 #include "firmware_like/device_config.hpp"
 #include "firmware_like/frame_statistics.hpp"
-#include "firmware_like/live_tracker.hpp"
 #include "firmware_like/pose_output.hpp"
+#include "hal/cpu/cpu_features.hpp"
 #include "hal/frame_source.hpp"
 #include "hal/io/text_formats.hpp"
 #include "hal/record/frame_recorder.hpp"
@@ -128,11 +129,14 @@ struct Override {
   std::string origin;  // "--features" or "--set features=5"
 };
 
-}  // namespace
+using epitrack::device::DeviceConfig;
 
-int main(int argc, char** argv) {
-  using epitrack::device::DeviceConfig;
-  // ---- configuration, read once: command line (as key/value pairs), then the file under it ----
+// ---- stage 1: the configuration, read once: the command line (as key/value pairs) over the file
+
+/// Fills `config` from the command line and the --config file under it. Returns the exit code
+/// when the command ends here (0 after --help, 2 on a usage or configuration error, the message
+/// printed), or -1 to go on.
+int readConfiguration(int argc, char** argv, DeviceConfig& config) {
   std::vector<Override> overrides;
   std::string config_path;
   for (int i = 1; i < argc; ++i) {
@@ -172,7 +176,6 @@ int main(int argc, char** argv) {
       overrides.push_back({option->key, value, "--" + name});
     }
   }
-  DeviceConfig config;
   std::string error;
   if (!config_path.empty()) {
     std::string text;
@@ -186,91 +189,159 @@ int main(int argc, char** argv) {
       return usageError(o.origin + ": " + why);
   }
   if (!epitrack::device::validateConfig(config, error)) return usageError(error);
+  return -1;
+}
 
-  // ---- everything reserved before the first frame ----
+// ---- stage 2: everything reserved before the first frame ----------------------------------------
+
+/// What the loop reads from and writes to, opened before the first frame.
+struct DeviceIo {
+  std::unique_ptr<epitrack::hal::FrameSource> source;
+  epitrack::CameraIntrinsics intrinsics;
+  const char* focal_source = "none yet";  ///< "given", "none yet", later the calibration's
+  epitrack::hal::FrameRecorder recorder;
+  std::FILE* poses = stdout;
+};
+
+/// Opens the source, reads or sets up the intrinsics (self-calibration when none are given: sets
+/// config.map.self_calibrate) and opens the recorder. What the command line or the configuration
+/// names and cannot be used ends here: false, the message printed (exit 2).
+bool openInputs(DeviceConfig& config, DeviceIo& io) {
   epitrack::hal::SourceOptions source_options;
   source_options.realtime = config.realtime;
   source_options.default_fps = config.fps;
-  // What the command line or the configuration names and cannot be used ends here with exit 2.
-  auto source = epitrack::hal::openFrameSource(config.source, source_options, error);
-  if (!source) {
+  std::string error;
+  io.source = epitrack::hal::openFrameSource(config.source, source_options, error);
+  if (!io.source) {
     std::fprintf(stderr, "epitrack-device: %s\n", error.c_str());
-    return 2;
+    return false;
   }
-  const auto& info = source->info();
-  epitrack::CameraIntrinsics intrinsics;
+  const auto& info = io.source->info();
   if (!config.intrinsics_path.empty()) {
-    if (!epitrack::hal::readIntrinsicsFile(config.intrinsics_path, intrinsics, error)) {
+    if (!epitrack::hal::readIntrinsicsFile(config.intrinsics_path, io.intrinsics, error)) {
       std::fprintf(stderr, "epitrack-device: --intrinsics: %s\n", error.c_str());
-      return 2;
+      return false;
     }
-    if (intrinsics.width != info.width || intrinsics.height != info.height) {
+    if (io.intrinsics.width != info.width || io.intrinsics.height != info.height) {
       std::fprintf(stderr,
                    "epitrack-device: --intrinsics: %s is for %dx%d, the source gives %dx%d\n",
-                   config.intrinsics_path.c_str(), intrinsics.width, intrinsics.height, info.width,
-                   info.height);
-      return 2;
+                   config.intrinsics_path.c_str(), io.intrinsics.width, io.intrinsics.height,
+                   info.width, info.height);
+      return false;
     }
   } else if (config.focal > 0.0) {
-    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, config.focal);
+    io.intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height, config.focal);
   } else {
     // Self-calibration over the first seconds (centred pinhole, square pixels); the focal here
     // is only a placeholder until then.
-    intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height,
-                                                      1.2 * std::max(info.width, info.height));
+    io.intrinsics = epitrack::CameraIntrinsics::centered(info.width, info.height,
+                                                         1.2 * std::max(info.width, info.height));
     config.map.self_calibrate = true;
     std::fprintf(
         stderr,
         "epitrack-device: no intrinsics given: the focal is self-calibrated from the first "
         "seconds of motion (centred pinhole)\n");
   }
-  const char* focal_source =
-      !config.intrinsics_path.empty() || config.focal > 0.0 ? "given" : "none yet";
-  epitrack::hal::FrameRecorder recorder;
+  io.focal_source = !config.intrinsics_path.empty() || config.focal > 0.0 ? "given" : "none yet";
   if (!config.record.empty()) {
-    if (!recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
+    if (!io.recorder.open(config.record, epitrack::hal::RecorderOptions{}, error)) {
       std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
-      return 2;
+      return false;
     }
   }
-  epitrack::device::LiveTracker tracker(config.tracker, config.map, intrinsics);
-  epitrack::device::FrameStatistics stats;
+  return true;
+}
 
-  std::FILE* out = stdout;
+/// Opens the pose stream (--poses: standard output or a file), line-buffered in a static buffer so
+/// that writing a line never allocates. False, the message printed, when the file cannot be
+/// written (exit 2).
+bool openPoseOutput(const DeviceConfig& config, DeviceIo& io) {
   if (config.poses != "-") {
-    out = std::fopen(config.poses.c_str(), "w");
-    if (out == nullptr) {
+    io.poses = std::fopen(config.poses.c_str(), "w");
+    if (io.poses == nullptr) {
       std::fprintf(stderr, "epitrack-device: --poses: cannot write %s: %s\n", config.poses.c_str(),
                    std::strerror(errno));
-      return 2;
+      return false;
     }
   }
-  static char out_buffer[1 << 16];
-  std::setvbuf(out, out_buffer, _IOLBF, sizeof(out_buffer));  // one line at a time, no malloc
-  char line[512];
-  std::fprintf(stderr,
-               "epitrack-device: %s %dx%d (%s, %.1f fps), %d features, map %.1f MiB reserved\n",
-               config.source.c_str(), info.width, info.height, info.pixel_format.c_str(),
-               info.fps > 0.0 ? info.fps : config.fps, config.tracker.max_features,
-               static_cast<double>(tracker.map().reservedBytes()) / (1024.0 * 1024.0));
-  installSignalHandlers();
+  static char buffer[1 << 16];
+  std::setvbuf(io.poses, buffer, _IOLBF, sizeof(buffer));  // one line at a time, no malloc
+  return true;
+}
 
-  // ---- the loop ----
+// ---- stage 3: the loop
+// ----------------------------------------------------------------------------
+
+/// Late frames are dropped from a live camera always, from a replay with --realtime: a frame more
+/// than one period behind the clock is skipped, so the backlog never exceeds the driver's own
+/// (fixed) buffer ring.
+class FramePacer {
+ public:
+  explicit FramePacer(double fps) : period_s_(1.0 / fps) {}
+
+  /// True when the frame stamped `timestamp_s` is more than one period older than the clock says
+  /// the newest is (processing lags: drop it and take the next one).
+  bool late(double timestamp_s) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!have_first_) {
+      have_first_ = true;
+      first_t_ = timestamp_s;
+      first_wall_ = now;
+      return false;
+    }
+    const double wall = std::chrono::duration<double>(now - first_wall_).count();
+    const double late_s = wall - (timestamp_s - first_t_);
+    if (late_s < 0.0) {
+      // Fresher than the first frame was: that one had waited in the driver's queue (the start
+      // after STREAMON is slow on a small board), and measuring from it would pass frames that
+      // old as current. Measure from this frame instead.
+      first_t_ = timestamp_s;
+      first_wall_ = now;
+      return false;
+    }
+    return late_s > period_s_;
+  }
+
+ private:
+  double period_s_;
+  bool have_first_ = false;
+  double first_t_ = 0.0;
+  std::chrono::steady_clock::time_point first_wall_{};
+};
+
+/// Counts a processed frame's status in `stats`.
+void countFrame(const epitrack::LiveFrameResult& map, epitrack::device::FrameStatistics& stats) {
+  ++stats.frames;
+  switch (map.status) {
+    case epitrack::LiveStatus::kTracking:
+      ++stats.tracking;
+      break;
+    case epitrack::LiveStatus::kInitializing:
+      ++stats.initializing;
+      break;
+    case epitrack::LiveStatus::kLost:
+      ++stats.lost;
+      break;
+  }
+  if (map.initialized) ++stats.initializations;
+}
+
+/// Frames from the source through the tracker to one pose line each, until the stream ends,
+/// --max-frames is reached or SIGINT/SIGTERM asks to stop. Never allocates. Returns the exit code
+/// so far: 0, or 1 when the stream, the recording or a frame's size failed (the message printed).
+int runLoop(const DeviceConfig& config, DeviceIo& io, epitrack::LiveTracker& tracker,
+            epitrack::device::FrameStatistics& stats) {
+  const auto& info = io.source->info();
   const double fps = info.fps > 0.0 ? info.fps : config.fps;
-  // Late frames are dropped from a live camera always, from a replay with --realtime: a frame more
-  // than one period behind the clock is skipped, so the backlog never exceeds the driver's own
-  // (fixed) buffer ring.
   const bool pace = config.realtime || config.source.rfind("v4l2:", 0) == 0;
-  const double period_s = 1.0 / fps;
-  bool have_first = false;
-  double first_t = 0.0;
-  std::chrono::steady_clock::time_point first_wall{};
+  FramePacer pacer(fps);
   int64_t last_index = -1;
-  int exit_code = 0;
+  std::string error;
+  char line[512];
   epitrack::hal::Frame frame;
-  epitrack::device::LiveFrameOutput result;
+  epitrack::LiveFrameOutput result;
   while (g_stop_signal == 0 && (config.max_frames == 0 || stats.frames < config.max_frames)) {
-    const auto status = source->next(frame);
+    const auto status = io.source->next(frame);
     if (status == epitrack::hal::FrameStatus::kTimeout) continue;
     if (status == epitrack::hal::FrameStatus::kCorruptFrame) {
       ++stats.corrupt;
@@ -281,9 +352,8 @@ int main(int argc, char** argv) {
         status == epitrack::hal::FrameStatus::kError) {
       if (g_stop_signal != 0) break;  // interrupted capture
       std::fprintf(stderr, "epitrack-device: %s: %s\n", epitrack::hal::frameStatusName(status),
-                   source->lastError().c_str());
-      exit_code = 1;
-      break;
+                   io.source->lastError().c_str());
+      return 1;
     }
     // Frames the source skipped (a live driver overwrote them) count as dropped.
     if (last_index >= 0 && frame.index > last_index + 1)
@@ -295,72 +365,51 @@ int main(int argc, char** argv) {
     // dropped frames are in the recording but have no pose line.
     int64_t record_frame = -1;
     if (!config.record.empty()) {
-      if (!recorder.write(frame, error)) {
+      if (!io.recorder.write(frame, error)) {
         std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
-        exit_code = 1;
-        break;
+        return 1;
       }
-      record_frame = recorder.framesWritten() - 1;
+      record_frame = io.recorder.framesWritten() - 1;
     }
-    if (pace) {
-      // Processing lags when this frame is more than one period older than the clock says the
-      // newest is: drop it and take the next one (nothing queues beyond the source's buffers).
-      const auto now = std::chrono::steady_clock::now();
-      if (!have_first) {
-        have_first = true;
-        first_t = frame.timestamp_s;
-        first_wall = now;
-      } else {
-        const double wall = std::chrono::duration<double>(now - first_wall).count();
-        const double late_s = wall - (frame.timestamp_s - first_t);
-        if (late_s < 0.0) {
-          // Fresher than the first frame was: that one had waited in the driver's queue (the
-          // start after STREAMON is slow on a small board), and measuring from it would pass
-          // frames that old as current. Measure from this frame instead.
-          first_t = frame.timestamp_s;
-          first_wall = now;
-        } else if (late_s > period_s) {
-          ++stats.dropped;
-          continue;
-        }
-      }
+    if (pace && pacer.late(frame.timestamp_s)) {
+      ++stats.dropped;
+      continue;
     }
-    if (tracker.process(frame.luma, result) != epitrack::device::LiveTracker::Status::kOk) {
+    const auto start = std::chrono::steady_clock::now();
+    if (tracker.process(frame.luma, result) != epitrack::LiveTracker::Status::kOk) {
       std::fprintf(stderr, "epitrack-device: frame %lld is %dx%d, expected %dx%d\n",
                    static_cast<long long>(frame.index), frame.luma.width, frame.luma.height,
-                   intrinsics.width, intrinsics.height);
-      exit_code = 1;
-      break;
+                   io.intrinsics.width, io.intrinsics.height);
+      return 1;
     }
-    ++stats.frames;
-    switch (result.map.status) {
-      case epitrack::LiveStatus::kTracking:
-        ++stats.tracking;
-        break;
-      case epitrack::LiveStatus::kInitializing:
-        ++stats.initializing;
-        break;
-      case epitrack::LiveStatus::kLost:
-        ++stats.lost;
-        break;
-    }
-    if (result.map.initialized) ++stats.initializations;
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    countFrame(result.map, stats);
     if (result.map.calibrated) {
-      focal_source = tracker.map().focalFallback() ? "fallback" : "self-calibrated";
+      io.focal_source = tracker.map().focalFallback() ? "fallback" : "self-calibrated";
       std::fprintf(stderr, "epitrack-device: frame %lld: focal %s: %.1f px (%d pairs)\n",
-                   static_cast<long long>(frame.index), focal_source, tracker.map().intrinsics().fx,
-                   tracker.map().calibrationPairs());
+                   static_cast<long long>(frame.index), io.focal_source,
+                   tracker.map().intrinsics().fx, tracker.map().calibrationPairs());
     }
-    if (stats.frames > config.warmup_frames) stats.addTiming(result.ms);
+    if (stats.frames > config.warmup_frames) stats.addTiming(ms);
     const int n = epitrack::device::formatPoseLine(
         line, sizeof(line), frame.index, record_frame, frame.timestamp_s, result.map.status,
-        result.features, result.map.pose, result.ms, result.map.init);
+        result.features, result.map.pose, ms, result.map.init);
     if (n > 0 && static_cast<std::size_t>(n) < sizeof(line))
-      std::fwrite(line, 1, static_cast<std::size_t>(n), out);
+      std::fwrite(line, 1, static_cast<std::size_t>(n), io.poses);
   }
+  return 0;
+}
 
-  // ---- final statistics (also after SIGINT/SIGTERM) ----
-  std::fprintf(out,
+// ---- stage 4: final statistics (also after SIGINT/SIGTERM), outputs closed
+// ------------------------
+
+/// Writes the statistics line, closes the pose stream and finishes the recording. Returns the
+/// exit code: `loop_code`, or 1 when closing an output failed.
+int finish(const DeviceConfig& config, DeviceIo& io, const epitrack::LiveTracker& tracker,
+           const epitrack::device::FrameStatistics& stats, int loop_code) {
+  int exit_code = loop_code;
+  std::fprintf(io.poses,
                "{\"summary\": true, \"frames\": %lld, \"tracked\": %lld, \"initializing\": %lld, "
                "\"lost\": %lld, \"dropped\": %lld, \"corrupt\": %lld, \"initializations\": %lld, "
                "\"timed_frames\": %lld, \"ms_median\": %.3f, \"ms_p95\": %.3f, \"ms_max\": %.3f, "
@@ -371,26 +420,49 @@ int main(int argc, char** argv) {
                static_cast<long long>(stats.dropped), static_cast<long long>(stats.corrupt),
                static_cast<long long>(stats.initializations), static_cast<long long>(stats.timed()),
                stats.percentile(0.5), stats.percentile(0.95), stats.maxMs(),
-               tracker.map().focalKnown() ? tracker.map().intrinsics().fx : 0.0, focal_source,
+               tracker.map().focalKnown() ? tracker.map().intrinsics().fx : 0.0, io.focal_source,
                peakResidentKib(),
                g_stop_signal == SIGINT    ? "SIGINT"
                : g_stop_signal == SIGTERM ? "SIGTERM"
                : exit_code != 0           ? "error"
                                           : "end");
-  std::fflush(out);
-  if (out != stdout && std::fclose(out) != 0) {
+  std::fflush(io.poses);
+  if (io.poses != stdout && std::fclose(io.poses) != 0) {
     std::fprintf(stderr, "epitrack-device: closing %s failed\n", config.poses.c_str());
     exit_code = 1;
   }
   if (!config.record.empty()) {
-    if (!recorder.finish(error)) {
+    std::string error;
+    if (!io.recorder.finish(error)) {
       std::fprintf(stderr, "epitrack-device: --record: %s\n", error.c_str());
       exit_code = 1;
     } else {
       std::fprintf(stderr, "epitrack-device: recorded %lld frames to %s\n",
-                   static_cast<long long>(recorder.framesWritten()), config.record.c_str());
+                   static_cast<long long>(io.recorder.framesWritten()), config.record.c_str());
     }
   }
-  source.reset();  // streams off, files closed
+  io.source.reset();  // streams off, files closed
   return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  epitrack::hal::selectKernelsForThisCpu();
+  DeviceConfig config;
+  if (const int code = readConfiguration(argc, argv, config); code >= 0) return code;
+  DeviceIo io;
+  if (!openInputs(config, io)) return 2;
+  epitrack::LiveTracker tracker(config.tracker, config.map, io.intrinsics);
+  if (!openPoseOutput(config, io)) return 2;
+  const auto& info = io.source->info();
+  std::fprintf(stderr,
+               "epitrack-device: %s %dx%d (%s, %.1f fps), %d features, map %.1f MiB reserved\n",
+               config.source.c_str(), info.width, info.height, info.pixel_format.c_str(),
+               info.fps > 0.0 ? info.fps : config.fps, config.tracker.max_features,
+               static_cast<double>(tracker.map().reservedBytes()) / (1024.0 * 1024.0));
+  installSignalHandlers();
+  epitrack::device::FrameStatistics stats;
+  const int loop_code = runLoop(config, io, tracker, stats);
+  return finish(config, io, tracker, stats, loop_code);
 }

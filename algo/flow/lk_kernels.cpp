@@ -1,6 +1,7 @@
 #include "algo/flow/lk_kernels.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cstring>
 #include <string_view>
@@ -62,13 +63,26 @@ const char* lkVectorIsa() { return EPITRACK_LK_SIMD_NAME; }
 
 bool lkHaveNeon() { return std::string_view(EPITRACK_LK_SIMD_NAME) == "neon"; }
 
+void lkSelectKernels(CpuVectorIsa /*isa*/) {}
+
 #elif EPITRACK_LK_NEON_ARMV7
+
+namespace {
+// What lkSelectKernels was told; scalar until then. Relaxed: the flag guards no other data, and
+// both kernels give the same sums.
+std::atomic<bool> g_neon{false};
+}  // namespace
+
+bool lkHaveNeon() { return g_neon.load(std::memory_order_relaxed); }
+
+void lkSelectKernels(CpuVectorIsa isa) {
+  g_neon.store(isa == CpuVectorIsa::kNeon, std::memory_order_relaxed);
+}
 
 void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int side,
                              const LkBilinear& w, const int16_t* T, const int16_t* Sx,
                              const int16_t* Sy, int tstride, LkWindowSums& out) {
-  // Chosen once (lkHaveNeon is defined in lk_kernels_neon32.cpp); both give the same sums.
-  static const auto kernel = lkHaveNeon() ? armv7::translationSumsNeon : lkTranslationSumsScalar;
+  const auto kernel = lkHaveNeon() ? armv7::translationSumsNeon : lkTranslationSumsScalar;
   kernel(image, stride, side, w, T, Sx, Sy, tstride, out);
 }
 
@@ -85,6 +99,8 @@ void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int si
 const char* lkVectorIsa() { return "scalar"; }
 
 bool lkHaveNeon() { return false; }
+
+void lkSelectKernels(CpuVectorIsa /*isa*/) {}
 
 #endif
 
@@ -138,7 +154,7 @@ void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, i
 void lkAffineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, int side,
                      const int16_t* T, const int16_t* Sx, const int16_t* Sy, int tstride,
                      LkAffineSums& out) {
-  static const auto kernel = lkHaveNeon() ? armv7::affineSumsNeon : lkAffineSumsScalar;
+  const auto kernel = lkHaveNeon() ? armv7::affineSumsNeon : lkAffineSumsScalar;
   kernel(image, warp, side, T, Sx, Sy, tstride, out);
 }
 

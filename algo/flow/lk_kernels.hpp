@@ -64,10 +64,23 @@ void lkTranslationSumsVector(const uint8_t* image, std::ptrdiff_t stride, int si
 /// "sse2", "neon" or "scalar": what lkTranslationSumsVector and lkAffineSums128 use on this
 /// machine.
 const char* lkVectorIsa();
-/// True when this machine runs the NEON kernels: every aarch64; 32-bit ARM (built with GCC for
-/// Linux) where the kernel reports NEON (getauxval(AT_HWCAP), checked once), since Debian's armhf
-/// baseline does not include it; false elsewhere.
+/// True when this machine runs the NEON kernels: every aarch64; a 32-bit ARM build (GCC for
+/// Linux) once lkSelectKernels was told the processor has NEON, since Debian's armhf baseline
+/// does not include it; false elsewhere.
 bool lkHaveNeon();
+
+/// A vector instruction set the processor adds to the build's baseline, as the platform reports
+/// it (hal::cpuVectorIsa() reads the kernel's AT_HWCAP: algo reads no system state).
+enum class CpuVectorIsa {
+  kBaseline,  ///< nothing beyond the build's baseline
+  kNeon,      ///< NEON on a 32-bit ARM build whose baseline lacks it
+};
+/// Chooses the kernels for a processor with `isa`: a 32-bit ARM build runs the NEON kernels after
+/// lkSelectKernels(CpuVectorIsa::kNeon) and the scalar ones before it or after kBaseline; other
+/// builds choose at compile time (SSE2, aarch64 NEON) or by cpuid (AVX2) and ignore the call.
+/// Call once at start (hal::selectKernelsForThisCpu), not while another thread tracks: the sums
+/// are the same bit for bit either way, only the speed changes.
+void lkSelectKernels(CpuVectorIsa isa);
 
 // ---- The affine iteration (PyramidalLk::alignAffine, Baker & Matthews 2004 §3.2) ---------------
 

@@ -1,7 +1,8 @@
 // The 128-bit LK kernels for 32-bit ARM with NEON, compiled into the baseline armhf build (Debian's
-// armv7-a+fp, VFPv3-D16, no NEON) and run only where the kernel reports NEON (lkHaveNeon), as the
-// AVX2 kernels are on x86-64. The kernel bodies are lk_kernels_simd128.hpp's, over simd_int16.hpp's
-// NEON operations in their ARMv7 spelling, so the sums are the scalar kernel's bit for bit.
+// armv7-a+fp, VFPv3-D16, no NEON) and run only where the kernel reports NEON (lkHaveNeon, set by
+// lkSelectKernels from hal::cpuVectorIsa()), as the AVX2 kernels are on x86-64. The kernel bodies
+// are lk_kernels_simd128.hpp's, over simd_int16.hpp's NEON operations in their ARMv7 spelling, so
+// the sums are the scalar kernel's bit for bit.
 //
 // Everything this file includes from the standard library and the project comes before the target
 // pragma and is compiled for the baseline: only the kernels and the vector operations, which have
@@ -18,18 +19,7 @@
 
 #if EPITRACK_LK_NEON_ARMV7
 
-#include <sys/auxv.h>
-
 #include "algo/flow/lk_kernels_arm.hpp"
-
-namespace epitrack {
-
-bool lkHaveNeon() {
-  static const bool have = (::getauxval(AT_HWCAP) & HWCAP_ARM_NEON) != 0;
-  return have;
-}
-
-}  // namespace epitrack
 
 #pragma GCC push_options
 #pragma GCC target("fpu=neon")

@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "algo/image/image.hpp"
-#include "firmware_like/live_tracker.hpp"
+#include "algo/sfm/live_tracker.hpp"
 #include "tests/alloc/counting_allocator.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
 
@@ -62,15 +62,15 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
   mo.max_features = 150;
   mo.max_points = 1000;
   const auto K = epitrack::CameraIntrinsics::centered(kWidth, kHeight, so.focal);
-  epitrack::device::LiveTracker tracker(to, mo, K);
-  epitrack::device::LiveFrameOutput out;
+  epitrack::LiveTracker tracker(to, mo, K);
+  epitrack::LiveFrameOutput out;
 
   int tracking = 0, lost = 0, initializations = 0, keyframes = 0;
   std::size_t allocations = 0;
   for (int i = 0; i < kFrames; ++i) {
     AllocationScope scope;
     REQUIRE(tracker.process(frames[static_cast<std::size_t>(i)].constView(), out) ==
-            epitrack::device::LiveTracker::Status::kOk);
+            epitrack::LiveTracker::Status::kOk);
     allocations += scope.count();
     tracking += out.map.status == epitrack::LiveStatus::kTracking ? 1 : 0;
     lost += out.map.status == epitrack::LiveStatus::kLost ? 1 : 0;
@@ -93,14 +93,14 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
   // and then the same loop, still without allocation.
   mo.self_calibrate = true;
   const auto K_guess = epitrack::CameraIntrinsics::centered(kWidth, kHeight, 1.2 * kWidth);
-  epitrack::device::LiveTracker selfcal(to, mo, K_guess);
+  epitrack::LiveTracker selfcal(to, mo, K_guess);
   std::size_t sc_allocations = 0;
   int calibrated_at = -1;
   int sc_tracking = 0;
   for (int i = 0; i < 250; ++i) {
     AllocationScope scope;
     REQUIRE(selfcal.process(frames[static_cast<std::size_t>(i)].constView(), out) ==
-            epitrack::device::LiveTracker::Status::kOk);
+            epitrack::LiveTracker::Status::kOk);
     sc_allocations += scope.count();
     if (out.map.calibrated) calibrated_at = i;
     sc_tracking += out.map.status == epitrack::LiveStatus::kTracking ? 1 : 0;

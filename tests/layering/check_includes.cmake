@@ -5,11 +5,9 @@
 #                  <sys/...> <unistd.h> <fcntl.h>); it takes views and returns results;
 #   hal/           nothing from tools/, firmware_like/, tests/;
 #   firmware_like/ nothing from tools/, tests/;
-#   tools/         nothing from tests/.
-# One exception, listed here with its reason: algo/flow/lk_kernels_neon32.cpp reads the CPU's NEON
-# bit with getauxval(AT_HWCAP) from <sys/auxv.h> (a read of the process's auxiliary vector, no
-# file or device; the ARMv7 counterpart of x86-64's __builtin_cpu_supports, see lk_kernels.hpp).
-# Exits with an error listing every violation.
+#   tools/         nothing from firmware_like/, tests/ (tools build on algo and hal only).
+# No exceptions: what the platform reports (the CPU's NEON bit) is read in hal/cpu/ and handed to
+# algo (lkSelectKernels). Exits with an error listing every violation.
 cmake_minimum_required(VERSION 3.25)
 if(NOT ROOT)
   message(FATAL_ERROR "check_includes.cmake: -DROOT=<source dir> is required")
@@ -18,8 +16,7 @@ endif()
 set(rule_algo "^(hal|tools|firmware_like|tests)/|^(fstream|filesystem|iostream|thread|mutex|unistd\\.h|fcntl\\.h)$|^(linux|sys)/")
 set(rule_hal "^(tools|firmware_like|tests)/")
 set(rule_firmware_like "^(tools|tests)/")
-set(rule_tools "^tests/")
-set(allowed "algo/flow/lk_kernels_neon32.cpp:sys/auxv.h")
+set(rule_tools "^(firmware_like|tests)/")
 
 get_filename_component(ROOT "${ROOT}" ABSOLUTE)
 set(violations "")
@@ -32,7 +29,7 @@ foreach(layer IN ITEMS algo hal firmware_like tools)
     file(STRINGS "${ROOT}/${source}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]")
     foreach(line IN LISTS lines)
       string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*[<\"]([^>\"]+)[>\"].*$" "\\1" header "${line}")
-      if(header MATCHES "${rule_${layer}}" AND NOT "${source}:${header}" IN_LIST allowed)
+      if(header MATCHES "${rule_${layer}}")
         string(APPEND violations "  ${source}: #include ${header}\n")
       endif()
     endforeach()

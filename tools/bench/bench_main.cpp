@@ -3,9 +3,11 @@
 #include <cstring>
 #include <string>
 
+#include "hal/cpu/cpu_features.hpp"
 #include "tools/bench/bench_registry.hpp"
 
 int main(int argc, char** argv) {
+  epitrack::hal::selectKernelsForThisCpu();
   auto& reg = epitrack::bench::registry();
   const auto usage = [&](std::FILE* out) {
     std::fprintf(out,

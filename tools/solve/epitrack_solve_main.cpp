@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <string>
 
+#include "hal/cpu/cpu_features.hpp"
 #include "tools/common/command_line.hpp"
 #include "tools/common/interrupt.hpp"
 #include "tools/export/reconstruction_scene_frame.hpp"
@@ -26,6 +27,7 @@ bool parseVector(const std::string& text, Eigen::Vector3d& v, std::string& error
 }  // namespace
 
 int main(int argc, char** argv) {
+  epitrack::hal::selectKernelsForThisCpu();
   epitrack::tools::SolveCommandOptions o;
   // A sparse 2D tracker sees far fewer corners on a grazing floor than on a facing wall: accept a
   // level plane with a twentieth of the points as the ground.

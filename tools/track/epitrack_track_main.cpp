@@ -14,6 +14,7 @@
 
 #include "algo/image/image.hpp"
 #include "algo/tracking/feature_tracker.hpp"
+#include "hal/cpu/cpu_features.hpp"
 #include "hal/frame_source.hpp"
 #include "hal/io/file_util.hpp"
 #include "hal/io/image_codec.hpp"
@@ -32,6 +33,7 @@ using epitrack::tools::CommandLine;
 using epitrack::tools::MaskSource;
 
 int main(int argc, char** argv) {
+  hal::selectKernelsForThisCpu();
   std::string input;
   std::string out;
   std::string mask_spec;

@@ -248,6 +248,15 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
     py = static_cast<float>(gy);
   }
   Candidate& c = t.candidate;
+  if (c.probed && !young) {
+    // Aligned already as a motion anchor (estimateGlobalMotion); the gate and the checks judge
+    // it against this prediction like every other track.
+    c.probed = false;
+    c.predicted_x = px;
+    c.predicted_y = py;
+    finishAlignment(t, young, x0, y0);
+    return;
+  }
   c.x = px;
   c.y = py;
   c.residual = 0.0f;
@@ -276,6 +285,11 @@ void FeatureTracker::alignOne(std::size_t s, bool young) {
   }
   c.predicted_x = px;
   c.predicted_y = py;
+  finishAlignment(t, young, x0, y0);
+}
+
+void FeatureTracker::finishAlignment(Track& t, bool young, float x0, float y0) {
+  Candidate& c = t.candidate;
   if (measurement_hook_ != nullptr && c.status == LkStatus::kTracked) {
     measurement_hook_(measurement_hook_context_, t.id, frame_index_, c.x, c.y);
   }
@@ -402,21 +416,19 @@ void FeatureTracker::anchorPrediction(const Track& t, double& px, double& py) co
   }
 }
 
-void FeatureTracker::estimateGlobalMotion() {
-  motion_estimator_.clear();
-  motion_ = SimilarityMotion{};
-  if (!options_.global_motion || options_.motion_anchors <= 0) return;
-  // Anchors: established tracks spread over a 4x4 grid (a few per cell, in slot order: the
-  // oldest tracks first, so the choice is deterministic). Each is probed through the whole
-  // pyramid from its own prediction (a jerk may have moved it far); the probe only measures the
-  // camera, the track itself is aligned afterwards like every other.
-  constexpr int kGrid = 4;
-  const int per_cell = (options_.motion_anchors + kGrid * kGrid - 1) / (kGrid * kGrid);
+int FeatureTracker::probeAnchors(int per_cell, int skip_first_per_cell) {
+  // Anchors: established tracks spread over a 4x4 grid (up to per_cell per cell, in slot order:
+  // the oldest tracks first, so the choice is deterministic; the first skip_first_per_cell of
+  // each cell were probed by an earlier call). Each is probed through the whole pyramid from its
+  // own prediction (a jerk may have moved it far); the probe only measures the camera, the track
+  // itself is aligned afterwards like every other.
+  constexpr int kGrid = kMotionGrid;
   int in_cell[kGrid * kGrid] = {};
-  int anchors = 0;
+  int probed = 0;
+  const int budget = std::min(options_.motion_anchors, per_cell * kGrid * kGrid);
   const Pyramid& pyramid = pyramids_[current_];
-  for (std::size_t s = 0; s < tracks_.size() && anchors < options_.motion_anchors; ++s) {
-    const Track& t = tracks_[s];
+  for (std::size_t s = 0; s < tracks_.size() && probed < budget; ++s) {
+    Track& t = tracks_[s];
     if (!t.live || t.age == 0) continue;
     const int cx =
         std::clamp(static_cast<int>(t.x * kGrid / static_cast<float>(width_)), 0, kGrid - 1);
@@ -425,7 +437,8 @@ void FeatureTracker::estimateGlobalMotion() {
     int& n = in_cell[cy * kGrid + cx];
     if (n >= per_cell) continue;
     ++n;
-    ++anchors;
+    ++probed;
+    if (n <= skip_first_per_cell) continue;
     double px = static_cast<double>(t.x), py = static_cast<double>(t.y);
     anchorPrediction(t, px, py);
     float qx = static_cast<float>(px), qy = static_cast<float>(py);
@@ -443,7 +456,58 @@ void FeatureTracker::estimateGlobalMotion() {
       shape = t.shape;
       status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
     }
-    if (status == LkStatus::kTracked) motion_estimator_.add(px, py, qx, qy);
+    if (status != LkStatus::kTracked) continue;
+    motion_estimator_.add(px, py, qx, qy);
+    // The probe is a full alignment of the track (its template, the whole pyramid, the affine
+    // base level): alignOne takes it instead of aligning the track a second time.
+    Candidate& c = t.candidate;
+    c.x = qx;
+    c.y = qy;
+    c.shape = shape;
+    c.residual = residual;
+    c.status = status;
+    c.probed = true;
+  }
+  return probed;
+}
+
+double FeatureTracker::cornerShift(const SimilarityMotion& m) const {
+  double shift = 0.0;
+  for (const double x : {0.0, static_cast<double>(width_ - 1)})
+    for (const double y : {0.0, static_cast<double>(height_ - 1)}) {
+      double mx = x, my = y;
+      m.apply(x, y, mx, my);
+      shift = std::max(shift, std::hypot(mx - x, my - y));
+    }
+  return shift;
+}
+
+void FeatureTracker::estimateGlobalMotion() {
+  motion_estimator_.clear();
+  motion_ = SimilarityMotion{};
+  if (!options_.global_motion || options_.motion_anchors <= 0) return;
+  constexpr int kCells = kMotionGrid * kMotionGrid;
+  const int per_cell = (options_.motion_anchors + kCells - 1) / kCells;
+  // A first round of one anchor per cell. When it agrees clearly on a motion that moves no image
+  // corner by motion_quiet_px or more, the tracks' own velocities predict the frame (smooth
+  // motion): that is the model, and the other anchors are not probed. Anything else (a jerk,
+  // parallax, a split vote) probes the rest and decides on all of them, as below.
+  const int quick = std::min(per_cell, std::max(options_.motion_quick_per_cell, 0));
+  if (quick > 0 && quick < per_cell) {
+    probeAnchors(quick, 0);
+    SimilarityMotion quick_fit;
+    if (motion_estimator_.estimate(quick_fit) == GlobalMotionEstimator::Status::kOk &&
+        static_cast<double>(motion_estimator_.inlierCount()) >=
+            options_.motion_clear_majority * static_cast<double>(motion_estimator_.size()) &&
+        cornerShift(quick_fit) < options_.motion_quiet_px) {
+      stats_.motion_anchors = motion_estimator_.size();
+      stats_.motion_inliers = motion_estimator_.inlierCount();
+      motion_ = quick_fit;
+      return;
+    }
+    probeAnchors(per_cell, quick);
+  } else {
+    probeAnchors(per_cell, 0);
   }
   stats_.motion_anchors = motion_estimator_.size();
   // No consensus (too few anchors, no dominant motion): every track keeps its own constant
@@ -468,14 +532,7 @@ void FeatureTracker::estimateGlobalMotion() {
     return;
   }
   if (inlier_fraction < options_.motion_min_inlier_fraction) return;
-  double shift = 0.0;
-  for (const double x : {0.0, static_cast<double>(width_ - 1)})
-    for (const double y : {0.0, static_cast<double>(height_ - 1)}) {
-      double mx = x, my = y;
-      fitted.apply(x, y, mx, my);
-      shift = std::max(shift, std::hypot(mx - x, my - y));
-    }
-  if (shift >= options_.motion_min_shift_px) motion_ = fitted;
+  if (cornerShift(fitted) >= options_.motion_min_shift_px) motion_ = fitted;
 }
 
 void FeatureTracker::predictAll() {
@@ -553,6 +610,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
 
   if (frame_index_ > 0) {
     lk_.resetCounters();
+    for (Track& t : tracks_) t.candidate.probed = false;
     t0 = stageNow();
     moved_count_ = 0;
     global_ready_ = false;

@@ -131,6 +131,13 @@ struct FeatureTrackerOptions {
   double motion_clear_majority = 0.7;
   double motion_min_inlier_fraction = 0.5;
   double motion_min_shift_px = 5.0;
+  /// The anchors are probed in two rounds: first motion_quick_per_cell per grid cell (16 of the
+  /// 48); when those agree (motion_clear_majority) on a motion that moves no image corner by
+  /// motion_quiet_px or more, the tracks' own velocities predict the frame and that fit is the
+  /// model; otherwise (a jerk, parallax, a split vote) the other anchors are probed too and the
+  /// model is decided on all of them. 0 (or as many as motion_anchors fill): one round.
+  int motion_quick_per_cell = 1;
+  double motion_quiet_px = 1.0;
   GlobalMotionOptions motion{};
   /// A frame whose mean absolute difference from the previous one is at most this many 1/256
   /// grey levels (64: 0.25) repeats it: the tracks stay, no filter is updated, no LK runs
@@ -245,6 +252,7 @@ class FeatureTracker {
     PatchShape shape;
     LkStatus status = LkStatus::kNoConvergence;
     bool gate_ok = true;  // inside the Kalman gate (judged before the per-track decisions)
+    bool probed = false;  // aligned down to the base level this frame as a motion anchor
   };
   struct Track {
     int32_t id = 0;
@@ -267,8 +275,16 @@ class FeatureTracker {
   void publishTracks();
   /// A frame equal to the previous one: tracks kept, filters untouched (see the .cpp).
   void keepRepeatedFrame();
+  /// The end of alignOne: the measurement hook and the neighbours' record of the motion.
+  void finishAlignment(Track& t, bool young, float x0, float y0);
   /// Picks the anchors, probes them and fits this frame's global motion (motion_).
   void estimateGlobalMotion();
+  /// Probes up to per_cell anchors per grid cell into motion_estimator_, skipping the first
+  /// skip_first_per_cell of each cell (probed before); returns the anchors counted.
+  int probeAnchors(int per_cell, int skip_first_per_cell);
+  /// The largest displacement of an image corner under `m`, px.
+  [[nodiscard]] double cornerShift(const SimilarityMotion& m) const;
+  static constexpr int kMotionGrid = 4;  // anchors are spread over a kMotionGrid^2 grid
   /// Where anchor `t` is expected before the global motion is known: its own constant-velocity
   /// prediction (with the Kalman filter), else the last frame's global motion.
   void anchorPrediction(const Track& t, double& px, double& py) const;

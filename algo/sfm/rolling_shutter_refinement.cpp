@@ -159,7 +159,7 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   bo.max_iterations = options.ba_iterations;
   bo.huber_px = options.huber_px;
   bo.refine_focal = options.refine_focal;
-  bo.function_tolerance = 1e-8;
+  bo.function_tolerance = 1e-6;
   bo.velocity_prior = options.resection.velocity_prior;
   BaIntrinsics k{K.fx, K.fy / K.fx, K.cx, K.cy, K.k1, K.k2};
   const auto summary = ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);

@@ -21,7 +21,7 @@
 namespace epitrack {
 
 struct RollingShutterRefinementOptions {
-  int rounds = 2;                    ///< resection + intersection alternations
+  int rounds = 1;                    ///< resection + intersection alternations
   double reproj_threshold_px = 2.5;  ///< observations beyond this are left out of both steps
   RollingShutterResectionOptions resection;
   bool bundle_adjustment = true;  ///< the joint adjustment after the alternation

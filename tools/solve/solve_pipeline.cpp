@@ -315,6 +315,7 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   run.rec.readout_reference_row = reference_row;
   run.rec.readout_rms_before_px = r.rms_before_px;
   run.rec.readout_rms_after_px = r.rms_after_px;
+  run.rec.readout_ba_iterations = r.ba_iterations;
   run.clock.lap("rolling_shutter");
 }
 

@@ -13,7 +13,7 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 }
 
 // exp([w]x) by Rodrigues' formula, with the series near zero.
-Eigen::Matrix3d expSo3(const Eigen::Vector3d& w) {
+Eigen::Matrix3d rodrigues(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();
   const Eigen::Matrix3d W = skew(w);
   if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
@@ -30,10 +30,37 @@ double huberCost(double e, double h) {
 
 constexpr double kMinDepth = 1e-8;
 
+// The right Jacobian of SO(3): Exp(phi + d) = Exp(phi) Exp(Jr(phi) d) to first order in d.
+Eigen::Matrix3d rightJacobianSo3(const Eigen::Vector3d& phi) {
+  const double theta2 = phi.squaredNorm();
+  const Eigen::Matrix3d P = skew(phi);
+  if (theta2 < 1e-12) return Eigen::Matrix3d::Identity() - 0.5 * P + (1.0 / 6.0) * (P * P);
+  const double theta = std::sqrt(theta2);
+  return Eigen::Matrix3d::Identity() - ((1.0 - std::cos(theta)) / theta2) * P +
+         ((theta - std::sin(theta)) / (theta2 * theta)) * (P * P);
+}
+
+// The camera of the row exposed at tau: x_c(tau) = Exp(-w tau) (R_cw (X - v tau) + t_cw).
+BaCamera cameraAtTime(const BaCamera& c, const RollingShutterMotion& m, double tau) {
+  const Eigen::Matrix3d E = rodrigues(-tau * m.angular);
+  BaCamera at;
+  at.R_cw = E * c.R_cw;
+  at.t_cw = E * (c.t_cw - c.R_cw * (m.linear * tau));
+  return at;
+}
+
+// Fixed point of the row: at most this many steps, stopping below this row change (pixels).
+constexpr int kMaxRowSteps = 20;
+constexpr double kRowTolerancePx = 1e-9;
+
 }  // namespace
 
-BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observations)
-    : max_cameras_(max_cameras), max_points_(max_points), max_observations_(max_observations) {
+BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observations,
+                               bool rolling_shutter)
+    : max_cameras_(max_cameras),
+      max_points_(max_points),
+      max_observations_(max_observations),
+      rs_capacity_(rolling_shutter) {
   const auto nc = static_cast<std::size_t>(std::max(0, max_cameras));
   const auto np = static_cast<std::size_t>(std::max(0, max_points));
   const auto no = static_cast<std::size_t>(std::max(0, max_observations));
@@ -41,11 +68,13 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   point_obs_offset_.resize(np + 1);
   point_obs_index_.resize(no);
   point_obs_cursor_.resize(np);
-  pair_obs_.resize(no);
-  pair_slot_.resize(no);
+  const std::size_t pairs = rolling_shutter ? 2 * no : no;
+  pair_obs_.resize(pairs);
+  pair_slot_.resize(pairs);
+  pair_begin_.resize(np);
   pair_end_.resize(np);
-  pair_Wc_.resize(no);
-  pair_WV_.resize(no);
+  pair_Wc_.resize(pairs);
+  pair_WV_.resize(pairs);
   V_.resize(np);
   gp_.resize(np);
   Vinv_.resize(np);
@@ -54,7 +83,11 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   Wk_.resize(no);
   cameras_backup_.resize(nc);
   points_backup_.resize(np);
-  const Eigen::Index n = 6 * static_cast<Eigen::Index>(nc) + 3;
+  if (rolling_shutter) {
+    Wv_.resize(no);
+    motions_backup_.resize(nc);
+  }
+  const Eigen::Index n = (rolling_shutter ? 12 : 6) * static_cast<Eigen::Index>(nc) + 3;
   S_.resize(n, n);
   A_.resize(n, n);
   rhs_.resize(n);
@@ -115,16 +148,88 @@ bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics&
   return true;
 }
 
+bool BundleAdjuster::projectRollingShutter(const BaCamera& c, const RollingShutterMotion& m,
+                                           const RollingShutter& shutter, const BaIntrinsics& k,
+                                           const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+                                           double& tau) {
+  tau = 0.0;
+  if (!project(c, k, X, uv)) return false;
+  // y <- pi_y(x_c(tau(y))) from the reference row's projection; contracts by line delay x row
+  // speed (a few %), so 3-6 steps (algo/geometry/rolling_shutter.hpp).
+  for (int step = 0; step < kMaxRowSteps; ++step) {
+    tau = shutter.rowTime(uv.y());
+    Eigen::Vector2d next;
+    if (!project(cameraAtTime(c, m, tau), k, X, next)) return false;
+    const double moved = std::fabs(next.y() - uv.y());
+    uv = next;
+    if (moved < kRowTolerancePx) {
+      tau = shutter.rowTime(uv.y());
+      return uv.allFinite();
+    }
+  }
+  return false;
+}
+
+bool BundleAdjuster::projectRollingShutterWithJacobians(
+    const BaCamera& c, const RollingShutterMotion& m, const RollingShutter& shutter,
+    const BaIntrinsics& k, const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+    Eigen::Matrix<double, 2, 6>& J_cam, Eigen::Matrix<double, 2, 6>& J_motion,
+    Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr) {
+  double tau = 0.0;
+  if (!projectRollingShutter(c, m, shutter, k, X, uv, tau)) return false;
+  // At the row's camera the global-shutter Jacobians give d uv / d x_c (G: the translation
+  // columns), d uv / d X and d uv / d intrinsics with the row held.
+  const BaCamera at = cameraAtTime(c, m, tau);
+  Eigen::Matrix<double, 2, 6> J_at;
+  if (!projectWithJacobians(at, k, X, uv, J_at, J_point, J_intr)) return false;
+  const Eigen::Matrix<double, 2, 3> G = J_at.rightCols<3>();
+  // x_c = E y, E = Exp(-w tau), y = a + t_cw, a = R_cw (X - v tau):
+  //   d x_c / d dtheta = -E [a]x,  d x_c / d dt = E,
+  //   d x_c / d w = tau E [y]x Jr(-w tau),  d x_c / d v = -tau E R_cw,
+  //   d x_c / d tau = -w x x_c - E R_cw v.
+  const Eigen::Matrix3d E = rodrigues(-tau * m.angular);
+  const Eigen::Vector3d a = c.R_cw * (X - m.linear * tau);
+  const Eigen::Vector3d y = a + c.t_cw;
+  const Eigen::Vector3d x_c = E * y;
+  const Eigen::Matrix<double, 2, 3> GE = G * E;
+  J_cam.leftCols<3>() = -GE * skew(a);
+  J_cam.rightCols<3>() = GE;
+  J_motion.leftCols<3>() = tau * GE * skew(y) * rightJacobianSo3(-tau * m.angular);
+  J_motion.rightCols<3>() = -tau * GE * c.R_cw;
+  const Eigen::Vector2d u_tau = G * (-m.angular.cross(x_c) - E * (c.R_cw * m.linear));
+  // The row moves with the parameters: uv = pi(q, tau(uv_y)) gives
+  // d uv_y = D_y / (1 - l u_tau_y) and d uv = D + l u_tau d uv_y (l: the line delay, D the
+  // derivative with the row held), i.e. every Jacobian times M = I + l / (1 - l u_tau_y) u_tau
+  // e_y^T.
+  const double l = shutter.line_delay;
+  const double denom = 1.0 - l * u_tau.y();
+  if (!(std::fabs(denom) > 1e-6)) return false;
+  Eigen::Matrix2d M = Eigen::Matrix2d::Identity();
+  M.col(1) += (l / denom) * u_tau;
+  J_cam = M * J_cam;
+  J_motion = M * J_motion;
+  J_point = M * J_point;
+  J_intr = M * J_intr;
+  return true;
+}
+
 double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
                                     std::span<const Eigen::Vector3d> points,
                                     std::span<const BaObservation> observations,
                                     const BaIntrinsics& k, double huber, double* rms) const {
   double cost = 0.0;
   double sq = 0.0;
+  const bool rs = !motions_.empty();
   for (const BaObservation& o : observations) {
     Eigen::Vector2d uv;
-    if (!project(cameras[static_cast<std::size_t>(o.camera)], k,
-                 points[static_cast<std::size_t>(o.point)], uv)) {
+    double tau = 0.0;
+    const bool seen =
+        rs ? projectRollingShutter(cameras[static_cast<std::size_t>(o.camera)],
+                                   motions_[static_cast<std::size_t>(o.camera)], shutter_, k,
+                                   points[static_cast<std::size_t>(o.point)], uv, tau)
+           : project(cameras[static_cast<std::size_t>(o.camera)], k,
+                     points[static_cast<std::size_t>(o.point)], uv);
+    if (!seen) {
       cost += 1e6;  // behind the camera: never an improvement
       sq += 1e6;
       continue;
@@ -135,6 +240,14 @@ double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
   }
   if (rms != nullptr)
     *rms = observations.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(observations.size()));
+  if (rs) {
+    // The motion prior of the free cameras (0.5 |prior x motion|^2, as the residuals).
+    const double prior2 = velocity_prior_ * velocity_prior_;
+    for (std::size_t c = 0; c < motions_.size(); ++c)
+      if (camera_slot_[c] >= 0)
+        cost +=
+            0.5 * prior2 * (motions_[c].angular.squaredNorm() + motions_[c].linear.squaredNorm());
+  }
   return cost;
 }
 
@@ -174,13 +287,16 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
   L.np = np;
   L.no = static_cast<int>(observations.size());
   const int nc = L.nc, no = L.no;
-  // Reduced-system layout: 6 per free camera, then the intrinsics.
+  // Reduced-system layout: 6 per free camera (12 with the rolling shutter's motion), then the
+  // intrinsics.
+  L.rs = !motions_.empty();
+  const int width = L.rs ? 12 : 6;
   int n_free = 0;
   for (int c = 0; c < nc; ++c)
     camera_slot_[static_cast<std::size_t>(c)] =
-        camera_fixed[static_cast<std::size_t>(c)] != 0 ? -1 : 6 * n_free++;
+        camera_fixed[static_cast<std::size_t>(c)] != 0 ? -1 : width * n_free++;
   L.nk = (options.refine_focal ? 1 : 0) + options.refine_distortion;
-  L.k0 = 6 * n_free;  // first intrinsics index
+  L.k0 = width * n_free;  // first intrinsics index
   L.n = L.k0 + L.nk;
   // Which intrinsics columns (f, k1, k2) are refined, in order.
   {
@@ -201,22 +317,29 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
     const auto p = static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].point);
     point_obs_index_[static_cast<std::size_t>(point_obs_cursor_[p]++)] = i;
   }
-  // Each point's observations by free cameras, sorted by slot (insertion sort: a few dozen each).
+  // Each point's observations by free cameras, sorted by slot (insertion sort: a few dozen each);
+  // with the rolling shutter, a second entry at the camera's motion slot.
+  const int entries = L.rs ? 2 : 1;
   for (int p = 0; p < np; ++p) {
-    const int begin = point_obs_offset_[static_cast<std::size_t>(p)];
+    const int begin = entries * point_obs_offset_[static_cast<std::size_t>(p)];
+    pair_begin_[static_cast<std::size_t>(p)] = begin;
     int end = begin;
-    for (int a = begin; a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
+    for (int a = point_obs_offset_[static_cast<std::size_t>(p)];
+         a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
       const int i = point_obs_index_[static_cast<std::size_t>(a)];
-      const int slot =
+      const int camera_slot =
           camera_slot_[static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].camera)];
-      if (slot < 0) continue;
-      int e = end++;
-      for (; e > begin && pair_slot_[static_cast<std::size_t>(e - 1)] > slot; --e) {
-        pair_slot_[static_cast<std::size_t>(e)] = pair_slot_[static_cast<std::size_t>(e - 1)];
-        pair_obs_[static_cast<std::size_t>(e)] = pair_obs_[static_cast<std::size_t>(e - 1)];
+      if (camera_slot < 0) continue;
+      for (int entry = 0; entry < entries; ++entry) {
+        const int slot = camera_slot + 6 * entry;
+        int e = end++;
+        for (; e > begin && pair_slot_[static_cast<std::size_t>(e - 1)] > slot; --e) {
+          pair_slot_[static_cast<std::size_t>(e)] = pair_slot_[static_cast<std::size_t>(e - 1)];
+          pair_obs_[static_cast<std::size_t>(e)] = pair_obs_[static_cast<std::size_t>(e - 1)];
+        }
+        pair_slot_[static_cast<std::size_t>(e)] = slot;
+        pair_obs_[static_cast<std::size_t>(e)] = i;
       }
-      pair_slot_[static_cast<std::size_t>(e)] = slot;
-      pair_obs_[static_cast<std::size_t>(e)] = i;
     }
     pair_end_[static_cast<std::size_t>(p)] = end;
   }
@@ -243,13 +366,21 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
     const auto pi = static_cast<std::size_t>(o.point);
     Eigen::Vector2d uv;
     Eigen::Matrix<double, 2, 6> Jc;
+    Eigen::Matrix<double, 2, 6> Jm;
     Eigen::Matrix<double, 2, 3> Jp;
     Eigen::Matrix<double, 2, 3> Jk_all;
     Wc_[static_cast<std::size_t>(i)].setZero();
     Wk_[static_cast<std::size_t>(i)].setZero();
-    if (!projectWithJacobians(cameras[static_cast<std::size_t>(o.camera)], k, points[pi], uv, Jc,
-                              Jp, Jk_all))
+    if (L.rs) {
+      Wv_[static_cast<std::size_t>(i)].setZero();
+      if (!projectRollingShutterWithJacobians(cameras[static_cast<std::size_t>(o.camera)],
+                                              motions_[static_cast<std::size_t>(o.camera)],
+                                              shutter_, k, points[pi], uv, Jc, Jm, Jp, Jk_all))
+        continue;
+    } else if (!projectWithJacobians(cameras[static_cast<std::size_t>(o.camera)], k, points[pi], uv,
+                                     Jc, Jp, Jk_all)) {
       continue;
+    }
     const Eigen::Vector2d r = uv - o.xy;
     const double w = huberWeight(r.norm(), options.huber_px);
     Eigen::Matrix<double, 2, 3> Jk = Eigen::Matrix<double, 2, 3>::Zero();
@@ -260,6 +391,13 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
       g.segment<6>(s) += w * Jc.transpose() * r;
       Wc_[static_cast<std::size_t>(i)] = w * Jc.transpose() * Jp;
       if (nk > 0) H.block(s, k0, 6, nk) += w * Jc.transpose() * Jk.leftCols(nk);
+      if (L.rs) {  // the motion at s + 6: its blocks of the upper triangle
+        H.block<6, 6>(s, s + 6) += w * Jc.transpose() * Jm;
+        H.block<6, 6>(s + 6, s + 6) += w * Jm.transpose() * Jm;
+        g.segment<6>(s + 6) += w * Jm.transpose() * r;
+        Wv_[static_cast<std::size_t>(i)] = w * Jm.transpose() * Jp;
+        if (nk > 0) H.block(s + 6, k0, 6, nk) += w * Jm.transpose() * Jk.leftCols(nk);
+      }
     }
     if (nk > 0) {
       H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
@@ -269,6 +407,17 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
     V_[pi] += w * Jp.transpose() * Jp;
     gp_[pi] += w * Jp.transpose() * r;
   }
+  if (L.rs) {  // the motion prior of the free cameras
+    const double prior2 = velocity_prior_ * velocity_prior_;
+    for (int c = 0; c < L.nc; ++c) {
+      const int s = camera_slot_[static_cast<std::size_t>(c)];
+      if (s < 0) continue;
+      const RollingShutterMotion& m = motions_[static_cast<std::size_t>(c)];
+      for (int j = 0; j < 6; ++j) H(s + 6 + j, s + 6 + j) += prior2;
+      g.segment<3>(s + 6) += prior2 * m.angular;
+      g.segment<3>(s + 9) += prior2 * m.linear;
+    }
+  }
   // Symmetrise the camera-intrinsics coupling.
   if (nk > 0) {
     for (int c = 0; c < k0; ++c)
@@ -276,10 +425,15 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
   }
   for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
   for (int p = 0; p < np; ++p) {
-    for (int e = point_obs_offset_[static_cast<std::size_t>(p)];
-         e < pair_end_[static_cast<std::size_t>(p)]; ++e)
-      pair_Wc_[static_cast<std::size_t>(e)] =
-          Wc_[static_cast<std::size_t>(pair_obs_[static_cast<std::size_t>(e)])];
+    for (int e = pair_begin_[static_cast<std::size_t>(p)];
+         e < pair_end_[static_cast<std::size_t>(p)]; ++e) {
+      const auto i = static_cast<std::size_t>(pair_obs_[static_cast<std::size_t>(e)]);
+      // The pose entry sits at its camera's slot, the motion entry 6 further.
+      const bool motion_entry =
+          L.rs && pair_slot_[static_cast<std::size_t>(e)] !=
+                      camera_slot_[static_cast<std::size_t>(observations[i].camera)];
+      pair_Wc_[static_cast<std::size_t>(e)] = motion_entry ? Wv_[i] : Wc_[i];
+    }
   }
 }
 
@@ -302,11 +456,10 @@ bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> 
     for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
     const Eigen::Matrix3d Vinv = Vd.inverse();
     Vinv_[pp] = Vinv;
-    const int begin = point_obs_offset_[pp];
-    const int end = point_obs_offset_[pp + 1];
     Eigen::Matrix3d Wk_sum = Eigen::Matrix3d::Zero();
-    for (int a = begin; a < end; ++a)
+    for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
       Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+    const int begin = pair_begin_[pp];
     const Eigen::Vector3d Vg = Vinv * gp_[pp];
     const int pair_end = pair_end_[pp];
     for (int e = begin; e < pair_end; ++e) {
@@ -362,6 +515,8 @@ double BundleAdjuster::backSubstitute(std::span<const BaObservation> observation
       const int sa =
           camera_slot_[static_cast<std::size_t>(observations[static_cast<std::size_t>(ia)].camera)];
       if (sa >= 0) rhs -= Wc_[static_cast<std::size_t>(ia)].transpose() * dc.segment<6>(sa);
+      if (sa >= 0 && L.rs)
+        rhs -= Wv_[static_cast<std::size_t>(ia)].transpose() * dc.segment<6>(sa + 6);
       if (nk > 0)
         rhs -= Wk_[static_cast<std::size_t>(ia)].topRows(nk).transpose() * dc.segment(k0, nk);
     }
@@ -382,13 +537,21 @@ void BundleAdjuster::applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
   for (int p = 0; p < np; ++p)
     points_backup_[static_cast<std::size_t>(p)] = points[static_cast<std::size_t>(p)];
   k_backup_ = k;
+  if (L.rs)
+    for (int c = 0; c < nc; ++c)
+      motions_backup_[static_cast<std::size_t>(c)] = motions_[static_cast<std::size_t>(c)];
   for (int c = 0; c < nc; ++c) {
     const int s = camera_slot_[static_cast<std::size_t>(c)];
     if (s < 0) continue;
     BaCamera& cam = cameras[static_cast<std::size_t>(c)];
     // x_c = exp([dtheta]x) R X + t + dt (the parametrisation of the Jacobians).
-    cam.R_cw = expSo3(dc.segment<3>(s)) * cam.R_cw;
+    cam.R_cw = rodrigues(dc.segment<3>(s)) * cam.R_cw;
     cam.t_cw += dc.segment<3>(s + 3);
+    if (L.rs) {
+      RollingShutterMotion& m = motions_[static_cast<std::size_t>(c)];
+      m.angular += dc.segment<3>(s + 6);
+      m.linear += dc.segment<3>(s + 9);
+    }
   }
   for (int p = 0; p < np; ++p)
     points[static_cast<std::size_t>(p)] += dp_[static_cast<std::size_t>(p)];
@@ -403,6 +566,7 @@ void BundleAdjuster::applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
 void BundleAdjuster::undoStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points) {
   for (std::size_t c = 0; c < cameras.size(); ++c) cameras[c] = cameras_backup_[c];
   for (std::size_t p = 0; p < points.size(); ++p) points[p] = points_backup_[p];
+  for (std::size_t c = 0; c < motions_.size(); ++c) motions_[c] = motions_backup_[c];
 }
 
 BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
@@ -412,6 +576,39 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
                                               std::span<const BaObservation> observations,
                                               BaIntrinsics& k,
                                               const BundleAdjustmentOptions& options) {
+  motions_ = {};
+  return solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
+}
+
+BundleAdjustmentSummary BundleAdjuster::solve(
+    std::span<BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+    std::span<Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+    std::span<const BaObservation> observations, BaIntrinsics& k,
+    const BundleAdjustmentOptions& options, const RollingShutter& shutter,
+    std::span<RollingShutterMotion> motions) {
+  motions_ = {};
+  if (shutter.line_delay != 0.0 && !motions.empty()) {
+    if (!rs_capacity_ || motions.size() != cameras.size() || !std::isfinite(shutter.line_delay))
+      return {};  // kInvalidInput
+    for (const RollingShutterMotion& m : motions)
+      if (!m.angular.allFinite() || !m.linear.allFinite()) return {};
+    motions_ = motions;
+    shutter_ = shutter;
+    velocity_prior_ = options.velocity_prior;
+  }
+  BundleAdjustmentSummary summary =
+      solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
+  motions_ = {};
+  return summary;
+}
+
+BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
+                                                  std::span<const uint8_t> camera_fixed,
+                                                  std::span<Eigen::Vector3d> points,
+                                                  std::span<const uint8_t> points_fixed,
+                                                  std::span<const BaObservation> observations,
+                                                  BaIntrinsics& k,
+                                                  const BundleAdjustmentOptions& options) {
   using Status = BundleAdjustmentSummary::Status;
   BundleAdjustmentSummary summary;
   if (!validInput(cameras, camera_fixed, points, points_fixed, observations, options))

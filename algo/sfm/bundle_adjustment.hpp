@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 #include <Eigen/LU>
 
+#include "algo/geometry/rolling_shutter.hpp"
+
 namespace epitrack {
 
 /// A camera of the bundle adjustment: the world-to-camera transform x_c = R_cw X + t_cw.
@@ -42,6 +44,12 @@ struct BundleAdjustmentOptions {
   double initial_lambda = 1e-4;  ///< Levenberg-Marquardt damping (relative to the diagonal)
   double function_tolerance = 1e-10;  ///< stop when the relative cost decrease falls below
   double step_tolerance = 1e-12;      ///< stop when the relative step falls below
+  /// Rolling shutter (the solve overload with motions): prior pulling each free camera's readout
+  /// motion (w, v) towards zero, weighted like this many pixels per radian and per world unit
+  /// (per frame interval). It keeps v defined when the points are far (v then has no image
+  /// effect) and is negligible against the rows' evidence otherwise (about f x tau px per radian
+  /// per point, thousands).
+  double velocity_prior = 1.0;
 };
 
 struct BundleAdjustmentSummary {
@@ -72,7 +80,10 @@ struct BundleAdjustmentSummary {
 /// Storage is sized at construction from the capacities; `solve` does not allocate.
 class BundleAdjuster {
  public:
-  BundleAdjuster(int max_cameras, int max_points, int max_observations);
+  /// `rolling_shutter`: also size the storage for the rolling-shutter solve (12 parameters per
+  /// camera instead of 6: the reduced system is 4x larger).
+  BundleAdjuster(int max_cameras, int max_points, int max_observations,
+                 bool rolling_shutter = false);
 
   /// Refines `cameras` (except those with camera_fixed[i] != 0), every point of `points`, and the
   /// intrinsics requested by `options`, in place. `points_fixed` may be empty (all free).
@@ -81,6 +92,40 @@ class BundleAdjuster {
                                 std::span<const uint8_t> points_fixed,
                                 std::span<const BaObservation> observations,
                                 BaIntrinsics& intrinsics, const BundleAdjustmentOptions& options);
+
+  /// The rolling-shutter adjustment (issue 27): each camera's pose is its reference row's and
+  /// `motions[c]` its motion over the readout (algo/geometry/rolling_shutter.hpp: constant angular
+  /// velocity in the camera frame, linear velocity of the centre in the world frame, per frame
+  /// interval), refined with the pose for every free camera (a fixed camera keeps both). Every
+  /// observation is projected on the row where the point is seen (the fixed point of the row);
+  /// the Jacobians are analytic and include the row's own dependence on the parameters. The
+  /// motions are per camera, not a smooth trajectory across frames: one observation then
+  /// touches one camera (the Schur complement's structure is unchanged), and the motion within a
+  /// readout is free to differ from the frame-to-frame motion (hand shake changes direction within
+  /// a frame interval). With `shutter.line_delay == 0` or empty `motions` this is `solve` above,
+  /// bit for bit. Needs the rolling-shutter capacity (constructor); `motions.size()` must equal
+  /// `cameras.size()`.
+  BundleAdjustmentSummary solve(std::span<BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+                                std::span<Eigen::Vector3d> points,
+                                std::span<const uint8_t> points_fixed,
+                                std::span<const BaObservation> observations,
+                                BaIntrinsics& intrinsics, const BundleAdjustmentOptions& options,
+                                const RollingShutter& shutter,
+                                std::span<RollingShutterMotion> motions);
+
+  /// Rolling-shutter projection: the pixel where `X` is seen (the fixed point of its row, to
+  /// 1e-9 px) and the row's time `tau`; false when behind the camera or not settling.
+  static bool projectRollingShutter(const BaCamera& camera, const RollingShutterMotion& motion,
+                                    const RollingShutter& shutter, const BaIntrinsics& k,
+                                    const Eigen::Vector3d& X, Eigen::Vector2d& uv, double& tau);
+
+  /// Its analytic Jacobians with respect to the camera update (dtheta, dt), the motion (w, v), the
+  /// point and the intrinsics (f, k1, k2), the row's dependence included.
+  static bool projectRollingShutterWithJacobians(
+      const BaCamera& camera, const RollingShutterMotion& motion, const RollingShutter& shutter,
+      const BaIntrinsics& k, const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+      Eigen::Matrix<double, 2, 6>& J_cam, Eigen::Matrix<double, 2, 6>& J_motion,
+      Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr);
 
   /// Projection used by the adjustment (for tests and callers): false when behind the camera.
   static bool project(const BaCamera& camera, const BaIntrinsics& k, const Eigen::Vector3d& X,
@@ -103,7 +148,15 @@ class BundleAdjuster {
     int k0 = 0;                  // their first index (6 x free cameras)
     int n = 0;                   // reduced-system size
     int kcol[3] = {0, 0, 0};
+    bool rs = false;  // rolling shutter: 12 per free camera, the motion at slot + 6
   };
+  BundleAdjustmentSummary solveImpl(std::span<BaCamera> cameras,
+                                    std::span<const uint8_t> camera_fixed,
+                                    std::span<Eigen::Vector3d> points,
+                                    std::span<const uint8_t> points_fixed,
+                                    std::span<const BaObservation> observations,
+                                    BaIntrinsics& intrinsics,
+                                    const BundleAdjustmentOptions& options);
   bool validInput(std::span<const BaCamera> cameras, std::span<const uint8_t> camera_fixed,
                   std::span<const Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
                   std::span<const BaObservation> observations,
@@ -135,14 +188,24 @@ class BundleAdjuster {
   int max_cameras_;
   int max_points_;
   int max_observations_;
+  bool rs_capacity_;
+  // The rolling-shutter solve in progress (empty motions: the global shutter).
+  RollingShutter shutter_;
+  std::span<RollingShutterMotion> motions_;
+  double velocity_prior_ = 0.0;
+  std::vector<RollingShutterMotion> motions_backup_;
+  std::vector<Eigen::Matrix<double, 6, 3>> Wv_;  // per observation J_motion^T W J_p
+  std::vector<int> pair_begin_;                  // per point, its first pair entry
   // Workspaces (sized in the constructor).
   std::vector<int> camera_slot_;       // reduced-system slot of each camera, -1 if fixed
   std::vector<int> point_obs_offset_;  // CSR over points: observations of point p
   std::vector<int> point_obs_index_;
   std::vector<int> point_obs_cursor_;
-  // Per point, its observations by free cameras sorted by reduced-system slot (the CSR offsets
-  // above; pair_end_ ends the free ones), with contiguous copies of their W blocks: the Schur
-  // complement's pair loop then reads memory in order and visits each camera pair once.
+  // Per point, its observations by free cameras sorted by reduced-system slot (from pair_begin_,
+  // the CSR offsets above for the global shutter; pair_end_ ends the free ones; with a rolling
+  // shutter each observation has two entries, its camera's pose slot and motion slot), with
+  // contiguous copies of their W blocks: the Schur complement's pair loop then reads memory in
+  // order and visits each camera pair once.
   std::vector<int> pair_obs_;
   std::vector<int> pair_slot_;
   std::vector<int> pair_end_;

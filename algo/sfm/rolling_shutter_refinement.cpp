@@ -4,6 +4,8 @@
 
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/undistort.hpp"
+#include "algo/sfm/ba_camera_pose.hpp"
+#include "algo/sfm/bundle_adjustment.hpp"
 
 namespace epitrack {
 
@@ -112,10 +114,78 @@ int intersectPoints(const TrackTable& tracks, const CameraIntrinsics& K,
   return done;
 }
 
+// The joint adjustment of every solved frame's pose and motion, the points and (optionally) the
+// focal, on the observations within the threshold of their rolling-shutter reprojection.
+void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingShutter& shutter,
+                   std::vector<SolvedFrame>& frames, std::vector<MapPoint>& points,
+                   std::vector<RollingShutterMotion>& motions,
+                   const RollingShutterRefinementOptions& options, const Workspace& w,
+                   RollingShutterRefinementResult& result) {
+  std::vector<int> camera_of_frame(frames.size(), -1);
+  std::vector<BaCamera> cameras;
+  std::vector<uint8_t> fixed;
+  std::vector<RollingShutterMotion> ba_motions;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (!frames[f].solved) continue;
+    camera_of_frame[f] = static_cast<int>(cameras.size());
+    cameras.push_back(toBa(frames[f].pose));
+    fixed.push_back(cameras.size() == 1 ? 1 : 0);  // the gauge: the first solved frame
+    ba_motions.push_back(motions[f]);
+  }
+  std::vector<int> ba_point(points.size(), -1);
+  std::vector<Eigen::Vector3d> X;
+  std::vector<BaObservation> observations;
+  for (const auto& o : tracks.observations()) {
+    const int p = w.point_of_track[static_cast<std::size_t>(o.track)];
+    const int c = camera_of_frame[static_cast<std::size_t>(o.frame)];
+    if (p < 0 || c < 0) continue;
+    const auto px = projectRollingShutter(
+        K, shutter, frames[static_cast<std::size_t>(o.frame)].pose,
+        motions[static_cast<std::size_t>(o.frame)], points[static_cast<std::size_t>(p)].X);
+    if (px.status != RollingShutterProjection::kOk ||
+        (px.px - Eigen::Vector2d(o.x, o.y)).norm() > options.reproj_threshold_px)
+      continue;
+    int& b = ba_point[static_cast<std::size_t>(p)];
+    if (b < 0) {
+      b = static_cast<int>(X.size());
+      X.push_back(points[static_cast<std::size_t>(p)].X);
+    }
+    observations.push_back({c, b, Eigen::Vector2d(o.x, o.y)});
+  }
+  if (cameras.size() < 2 || observations.size() < 20) return;
+  BundleAdjuster ba(static_cast<int>(cameras.size()), static_cast<int>(X.size()),
+                    static_cast<int>(observations.size()), true);
+  BundleAdjustmentOptions bo;
+  bo.max_iterations = options.ba_iterations;
+  bo.huber_px = options.huber_px;
+  bo.refine_focal = options.refine_focal;
+  bo.function_tolerance = 1e-6;
+  bo.velocity_prior = options.resection.velocity_prior;
+  BaIntrinsics k{K.fx, K.fy / K.fx, K.cx, K.cy, K.k1, K.k2};
+  const auto summary = ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);
+  if (summary.status == BundleAdjustmentSummary::Status::kInvalidInput ||
+      summary.status == BundleAdjustmentSummary::Status::kNumericalFailure ||
+      !(std::isfinite(k.f) && k.f > 0.0))
+    return;
+  result.ba_iterations = summary.iterations;
+  result.ba_observations = static_cast<int>(observations.size());
+  const double aspect = K.fy / K.fx;
+  K.fx = k.f;
+  K.fy = k.f * aspect;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const int c = camera_of_frame[f];
+    if (c < 0) continue;
+    frames[f].pose = fromBa(cameras[static_cast<std::size_t>(c)]);
+    motions[f] = ba_motions[static_cast<std::size_t>(c)];
+  }
+  for (std::size_t p = 0; p < points.size(); ++p)
+    if (ba_point[p] >= 0) points[p].X = X[static_cast<std::size_t>(ba_point[p])];
+}
+
 }  // namespace
 
 RollingShutterRefinementResult refineRollingShutter(
-    const TrackTable& tracks, const CameraIntrinsics& K, const RollingShutter& shutter,
+    const TrackTable& tracks, CameraIntrinsics& K, const RollingShutter& shutter,
     std::vector<SolvedFrame>& frames, std::vector<MapPoint>& points,
     std::vector<RollingShutterMotion>& motions, const RollingShutterRefinementOptions& options) {
   RollingShutterRefinementResult result;
@@ -131,6 +201,8 @@ RollingShutterRefinementResult refineRollingShutter(
     result.frames = resectFrames(tracks, K, shutter, frames, points, motions, options, w);
     result.points = intersectPoints(tracks, K, shutter, frames, points, motions, options, w);
   }
+  if (options.bundle_adjustment)
+    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, result);
   result.rms_after_px =
       reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
   return result;

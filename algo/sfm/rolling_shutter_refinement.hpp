@@ -6,8 +6,10 @@
 // point is triangulated again from the pose of the row it was seen on in each frame, and the two
 // steps alternate (resection-intersection: each step lowers the same reprojection error, so the
 // alternation converges to the joint optimum of poses, motions and points that a bundle adjustment
-// with the motion parameters would reach, more slowly). The focal and the distortion stay as the
-// global-shutter solve left them.
+// with the motion parameters would reach, more slowly). A bundle adjustment with the readout in the
+// projection (algo/sfm/bundle_adjustment.hpp) then refines poses, motions and points jointly
+// (and the focal, when asked): the alternation only gives it a start in which every frame's
+// motion is already near its value, so the adjustment's first linearisation is good.
 
 #include <vector>
 
@@ -19,9 +21,13 @@
 namespace epitrack {
 
 struct RollingShutterRefinementOptions {
-  int rounds = 4;                    ///< resection + intersection alternations
+  int rounds = 1;                    ///< resection + intersection alternations
   double reproj_threshold_px = 2.5;  ///< observations beyond this are left out of both steps
   RollingShutterResectionOptions resection;
+  bool bundle_adjustment = true;  ///< the joint adjustment after the alternation
+  bool refine_focal = false;      ///< also refine the focal (a self-calibrated solve's)
+  int ba_iterations = 30;
+  double huber_px = 1.0;  ///< the adjustment's Huber threshold
 };
 
 struct RollingShutterRefinementResult {
@@ -29,14 +35,19 @@ struct RollingShutterRefinementResult {
   int points = 0;              ///< points triangulated again in the last round
   double rms_before_px = 0.0;  ///< reprojection RMS (rolling-shutter model, zero motion) before
   double rms_after_px = 0.0;   ///< and after
+  int ba_iterations = 0;       ///< iterations of the joint adjustment (0: not run)
+  int ba_observations = 0;
 };
 
 /// Refines `frames` (reference-row poses), `points` and writes each frame's readout motion into
-/// `motions` (one per frame; zero for unsolved frames). `K`: the solve's intrinsics. Allocates its
-/// working buffers (once per solve, offline).
-RollingShutterRefinementResult refineRollingShutter(
-    const TrackTable& tracks, const CameraIntrinsics& K, const RollingShutter& shutter,
-    std::vector<SolvedFrame>& frames, std::vector<MapPoint>& points,
-    std::vector<RollingShutterMotion>& motions, const RollingShutterRefinementOptions& options);
+/// `motions` (one per frame; zero for unsolved frames). `K`: the solve's intrinsics (its focal
+/// refined with `options.refine_focal`). The first solved frame's pose holds the gauge. Allocates
+/// its working buffers (once per solve, offline).
+RollingShutterRefinementResult refineRollingShutter(const TrackTable& tracks, CameraIntrinsics& K,
+                                                    const RollingShutter& shutter,
+                                                    std::vector<SolvedFrame>& frames,
+                                                    std::vector<MapPoint>& points,
+                                                    std::vector<RollingShutterMotion>& motions,
+                                                    const RollingShutterRefinementOptions& options);
 
 }  // namespace epitrack

@@ -182,6 +182,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("reference_row", rec.readout_reference_row);
     j.field("rms_before_px", rec.readout_rms_before_px);
     j.field("rms_after_px", rec.readout_rms_after_px);
+    j.field("ba_iterations", rec.readout_ba_iterations);
     j.endObject();
   }
   j.field("motion", rec.motion);

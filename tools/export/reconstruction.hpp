@@ -136,6 +136,7 @@ struct Reconstruction {
   double readout_reference_row = 0.0;
   double readout_rms_before_px = 0.0;
   double readout_rms_after_px = 0.0;
+  int readout_ba_iterations = 0;   ///< the joint rolling-shutter adjustment's iterations
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see

@@ -304,12 +304,18 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   std::vector<RollingShutterMotion> motions;
   RollingShutterRefinementOptions options;
   options.reproj_threshold_px = 2.0 * run.so.reproj_threshold_px;
+  // The focal is refined with the readout where the solve refined it: a global-shutter solve
+  // absorbs part of the rows' shear into its focal.
+  options.refine_focal = s.focal_source == FocalSource::kSelfCalibrated ||
+                         s.focal_source == FocalSource::kFallback || run.so.refine_given_focal;
   const auto r = refineRollingShutter(run.tracks, K, shutter, run.solved_frames, run.solved_points,
                                       motions, options);
+  if (options.refine_focal && r.ba_iterations > 0) run.readout_focal_px = K.fx;
   run.rec.readout_ms = run.o.readout_ms;
   run.rec.readout_reference_row = reference_row;
   run.rec.readout_rms_before_px = r.rms_before_px;
   run.rec.readout_rms_after_px = r.rms_after_px;
+  run.rec.readout_ba_iterations = r.ba_iterations;
   run.clock.lap("rolling_shutter");
 }
 
@@ -319,6 +325,10 @@ void refineReadout(SolveRun& run, const Solver& solver) {
 // reprojection error.
 void buildReconstruction(SolveRun& run, const Solver& solver) {
   describeSolve(run, solver);
+  if (run.readout_focal_px > 0.0) {
+    run.rec.intrinsics.fy *= run.readout_focal_px / run.rec.intrinsics.fx;
+    run.rec.intrinsics.fx = run.readout_focal_px;
+  }
   collectGeometry(run);
   auto& rec = run.rec;
   if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||

@@ -85,6 +85,8 @@ struct SolveRun {
   /// The solver's frames and points, refined for a rolling shutter with --readout-ms.
   std::vector<SolvedFrame> solved_frames;
   std::vector<MapPoint> solved_points;
+  /// > 0: the focal the rolling-shutter adjustment refined (it replaces the solver's).
+  double readout_focal_px = 0.0;
   /// rec_observation[i]: index into rec.observations of tracks.observations()[i], -1 when left out.
   std::vector<int> rec_observation;
   std::string stop_stage;  ///< the stage a stop signal ended after the solve, if one did

@@ -35,7 +35,14 @@ DescriptorTracker::DescriptorTracker(const DescriptorTrackerOptions& options, in
       ransac_(std::max(8, 2 * nodesPerFrame(options))),
       essential_(std::max(8, 2 * nodesPerFrame(options))),
       lk_(options.lk, 1) {
-  pyramids_.resize(static_cast<std::size_t>(std::max(1, options.window)) + 1);
+  if (options_.window <= DescriptorTrackerOptions::kAllPairs)
+    options_.window = std::max(1, expected_frames - 1);
+  options_.window = std::max(1, options_.window);
+  // LK propagates from the previous lk_propagation_frames frames only: their pyramids and this
+  // frame's.
+  const int propagation_frames =
+      std::min(options_.window, std::max(1, options_.lk_propagation_frames));
+  pyramids_.resize(static_cast<std::size_t>(propagation_frames) + 1);
   for (Pyramid& p : pyramids_) p.configure(width, height, options.lk.levels + 1);
   if (knownIntrinsics()) {
     Eigen::Matrix3d K;
@@ -43,7 +50,6 @@ DescriptorTracker::DescriptorTracker(const DescriptorTrackerOptions& options, in
         0.0, 0.0, 1.0;
     K_inv_ = K.inverse();
   }
-  options_.window = std::max(1, options_.window);
   const auto n = static_cast<std::size_t>(std::max(1, options_.features.max_features));
   options_.max_propagated = std::max(0, options_.max_propagated);
   const std::size_t nodes_per_frame = n + static_cast<std::size_t>(options_.max_propagated);
@@ -142,7 +148,7 @@ int DescriptorTracker::putativeMatches(const Slot& older, const Slot& current, b
   return count;
 }
 
-bool DescriptorTracker::robustFit(int n, uint64_t seed, Eigen::Matrix3d& F) {
+bool DescriptorTracker::robustFit(int n, uint64_t seed, int max_iterations, Eigen::Matrix3d& F) {
   // Over xa_[0, n), xb_[0, n) (pixels): E-RANSAC on normalized points when the intrinsics are
   // known, F-RANSAC otherwise; F in pixels either way.
   if (knownIntrinsics()) {
@@ -153,6 +159,7 @@ bool DescriptorTracker::robustFit(int n, uint64_t seed, Eigen::Matrix3d& F) {
     EssentialRansacOptions eo;
     eo.ransac = options_.fundamental.ransac;
     eo.ransac.seed = seed;
+    eo.ransac.max_iterations = std::min(eo.ransac.max_iterations, max_iterations);
     eo.focal_px = options_.focal_px;
     EssentialRansacResult er;
     if (essential_.estimate({na_.data(), static_cast<std::size_t>(n)},
@@ -165,6 +172,7 @@ bool DescriptorTracker::robustFit(int n, uint64_t seed, Eigen::Matrix3d& F) {
   }
   FundamentalOptions fo = options_.fundamental;
   fo.ransac.seed = seed;
+  fo.ransac.max_iterations = std::min(fo.ransac.max_iterations, max_iterations);
   FundamentalResult fr;
   if (ransac_.estimate({xa_.data(), static_cast<std::size_t>(n)},
                        {xb_.data(), static_cast<std::size_t>(n)}, fo,
@@ -202,9 +210,11 @@ Eigen::Vector2d DescriptorTracker::normalize(const Eigen::Vector2d& px) const {
 }
 
 bool DescriptorTracker::verify(const Slot& older, const Slot& current, int count, uint64_t seed,
-                               Eigen::Matrix3d& F, int& inliers) {
+                               bool chain_pair, Eigen::Matrix3d& F, int& inliers) {
+  const int max_iterations =
+      chain_pair ? options_.fundamental.ransac.max_iterations : options_.graph_ransac_iterations;
   inliers = 0;
-  if (count < 8) return false;
+  if (count < std::max(8, options_.min_inliers)) return false;  // could not be accepted
   const auto position = [&](const DescriptorMatch& m, Eigen::Vector2d& a, Eigen::Vector2d& b) {
     const Keypoint& p = older.keypoints[static_cast<std::size_t>(m.a)];
     const Keypoint& q = current.keypoints[static_cast<std::size_t>(m.b)];
@@ -226,18 +236,20 @@ bool DescriptorTracker::verify(const Slot& older, const Slot& current, int count
     return n;
   };
   bool found = false;
+  const int seeds = std::max(16, static_cast<int>(options_.seed_fraction * count));
+  const bool seed_stage = seeds < count && options_.seed_fraction > 0.0;
   for (int i = 0; i < count; ++i)
     position(matches_[static_cast<std::size_t>(i)], xa_[static_cast<std::size_t>(i)],
              xb_[static_cast<std::size_t>(i)]);
   Eigen::Matrix3d model;
-  if (robustFit(count, seed, model)) {
+  // A graph pair (beyond the chain window) is verified by the seed stage alone when there is one.
+  if ((chain_pair || !seed_stage) && robustFit(count, seed, max_iterations, model)) {
     F = model;
     inliers = support(F, false);
     found = true;
   }
   // The most distinctive matches (lowest best / second-best distance ratio).
-  const int seeds = std::max(16, static_cast<int>(options_.seed_fraction * count));
-  if (seeds < count && options_.seed_fraction > 0.0) {
+  if (seed_stage) {
     std::iota(index_.begin(), index_.begin() + count, 0);
     const auto ratio = [&](int i) {
       const DescriptorMatch& m = matches_[static_cast<std::size_t>(i)];
@@ -248,7 +260,7 @@ bool DescriptorTracker::verify(const Slot& older, const Slot& current, int count
     for (int k = 0; k < seeds; ++k)
       position(matches_[static_cast<std::size_t>(index_[static_cast<std::size_t>(k)])],
                xa_[static_cast<std::size_t>(k)], xb_[static_cast<std::size_t>(k)]);
-    if (robustFit(seeds, seed + 1, model)) {
+    if (robustFit(seeds, seed + 1, max_iterations, model)) {
       // Refit on its support among every match (a few rounds: the support grows).
       int n = support(model, true);
       for (int round = 0; round < 3 && n >= 8; ++round) {
@@ -289,15 +301,17 @@ void DescriptorTracker::matchPair(const Slot& older, const Slot& current) {
     return inliers >= options_.min_inliers &&
            inliers >= options_.min_inlier_ratio * static_cast<double>(count);
   };
+  const bool chain_pair = current.frame - older.frame <= options_.chain_window;
   Eigen::Matrix3d F;
   int count = 0, inliers = 0;
   bool oriented = options_.orientation == DescriptorOrientation::kOriented;
   count = putativeMatches(older, current, oriented);
-  bool ok = verify(older, current, count, seed, F, inliers) && acceptable(inliers, count);
+  bool ok =
+      verify(older, current, count, seed, chain_pair, F, inliers) && acceptable(inliers, count);
   if (!ok && options_.orientation == DescriptorOrientation::kBoth) {
     oriented = true;
     count = putativeMatches(older, current, true);
-    ok = verify(older, current, count, seed, F, inliers) && acceptable(inliers, count);
+    ok = verify(older, current, count, seed, chain_pair, F, inliers) && acceptable(inliers, count);
   }
   pm.putative = count;
   pm.inliers = inliers;

@@ -29,7 +29,20 @@ struct DescriptorTrackerOptions {
   FeatureExtractorOptions features;
   DescriptorOrientation orientation = DescriptorOrientation::kBoth;
   DescriptorMatchOptions match;
-  int window = 2;  ///< each frame is matched against this many previous frames
+  /// Each frame is matched against this many previous frames; kAllPairs (0): against every
+  /// previous frame (the `expected_frames` of the constructor), so every pair of a photo set is
+  /// matched and verified whatever the order of its files (the view graph: docs/tracker.md).
+  int window = 2;
+  static constexpr int kAllPairs = 0;
+  /// Pairs more than chain_window frames apart (the pairs only a wide window or kAllPairs
+  /// matches) are verified by the seed stage alone (below), with at most
+  /// graph_ransac_iterations RANSAC iterations: in
+  /// a photo set most pairs do not overlap and their RANSAC would run to its maximum (2000
+  /// five-point iterations, four times: 75 % of a 47-view matching), while a pair that does
+  /// overlap has a high inlier fraction among its most distinctive matches (the seed stage), which
+  /// a few hundred samples find.
+  int chain_window = 2;
+  int graph_ransac_iterations = 300;
   /// Geometric verification: F-RANSAC on the putative matches of a frame pair (Sampson distance
   /// threshold in pixels); a pair with fewer inliers than min_inliers, or an inlier fraction below
   /// min_inlier_ratio, contributes no match.
@@ -141,9 +154,9 @@ class DescriptorTracker {
   /// Putative matches of the pair with one descriptor kind into matches_; returns their count.
   int putativeMatches(const Slot& older, const Slot& current, bool oriented);
   /// F-RANSAC over matches_[0, count): F, the inlier mask (inlier_) and count; false when none.
-  bool verify(const Slot& older, const Slot& current, int count, uint64_t seed, Eigen::Matrix3d& F,
-              int& inliers);
-  bool robustFit(int n, uint64_t seed, Eigen::Matrix3d& F);
+  bool verify(const Slot& older, const Slot& current, int count, uint64_t seed, bool chain_pair,
+              Eigen::Matrix3d& F, int& inliers);
+  bool robustFit(int n, uint64_t seed, int max_iterations, Eigen::Matrix3d& F);
   bool refit(int n, Eigen::Matrix3d& F) const;
   [[nodiscard]] bool knownIntrinsics() const { return options_.focal_px > 0.0; }
   [[nodiscard]] Eigen::Vector2d normalize(const Eigen::Vector2d& px) const;
@@ -175,7 +188,7 @@ class DescriptorTracker {
   std::vector<FramePairMatches> pairs_;
   // LK propagation: the pyramids of the previous and the current frame, one LK slot, and the
   // verified matches (previous -> current) with their model.
-  std::vector<Pyramid> pyramids_;  // ring of window + 1 frames
+  std::vector<Pyramid> pyramids_;  // ring of lk_propagation_frames + 1 frames
   PyramidalLk lk_;
   std::vector<SeedSet> seed_sets_;  // by k = frame distance (1..window)
   std::vector<float> seed_dist_, disp_x_, disp_y_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 namespace epitrack::tools {
 
@@ -38,6 +39,32 @@ bool parseMatcher(const std::string& text, Matcher& m) {
   return false;
 }
 
+bool parseMatchWindow(const std::string& text, int& window, std::string& error) {
+  if (text == "auto") {
+    window = kMatchWindowAuto;
+    return true;
+  }
+  if (text == "all") {
+    window = DescriptorTrackerOptions::kAllPairs;
+    return true;
+  }
+  char* end = nullptr;
+  const long v = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || end == nullptr || *end != '\0' || v < 1 || v > 50) {
+    error = "expected auto, all or a number of frames 1-50, got '" + text + "'";
+    return false;
+  }
+  window = static_cast<int>(v);
+  return true;
+}
+
+int resolveMatchWindow(int window, long expected_frames) {
+  if (window != kMatchWindowAuto) return window;
+  return expected_frames > 1 && expected_frames <= kAllPairsMaxFrames
+             ? DescriptorTrackerOptions::kAllPairs
+             : kChainMatchWindow;
+}
+
 double trackSurvival(const TrackTable& table, int frames) {
   std::vector<double> survival;
   for (int f = 0; f + 1 < std::min(frames, table.frameCount()); ++f) {
@@ -67,6 +94,7 @@ ClipTracker::ClipTracker(Matcher matcher, const FeatureTrackerOptions& lk,
       width_(width),
       height_(height),
       expected_frames_(std::max(1, expected_frames)) {
+  descriptor_options_.window = resolveMatchWindow(descriptors.window, expected_frames);
   if (matcher == Matcher::kDescriptors) {
     descriptors_ =
         std::make_unique<DescriptorTracker>(descriptor_options_, width_, height_, expected_frames_);

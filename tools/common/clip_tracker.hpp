@@ -25,6 +25,19 @@ enum class Matcher { kLk, kDescriptors, kAuto };
 /// KITTI highway 1.35 -> 1.15 %, the rendered orbit 0.0051 -> 0.0031 %) at about 1.7x the time.
 inline constexpr int kSolveFeatures = 600;
 
+/// --match-window: `auto` resolves to every pair (DescriptorTrackerOptions::kAllPairs) for a
+/// clip of at most kAllPairsMaxFrames frames, to the previous kChainMatchWindow frames otherwise.
+/// 47 views matched pair by pair take 40 s here (docs/tracker.md, "The view graph"); the pairs
+/// grow with the square of the frames.
+inline constexpr int kMatchWindowAuto = -1;
+inline constexpr int kAllPairsMaxFrames = 60;
+inline constexpr int kChainMatchWindow = 2;
+
+/// "auto", "all" or a number of previous frames (1-50) into `window`; false with `error` set.
+bool parseMatchWindow(const std::string& text, int& window, std::string& error);
+/// The window the descriptor tracker uses for a clip of `expected_frames` frames (<= 1: unknown).
+int resolveMatchWindow(int window, long expected_frames);
+
 /// "lk", "descriptors", "auto".
 const char* matcherName(Matcher m);
 bool parseMatcher(const std::string& text, Matcher& m);

@@ -107,9 +107,14 @@ int main(int argc, char** argv) {
             &matcher);
   cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
              &o.matching.features.max_features, 50, 100000);
-  cl.integer("match-window", "N",
-             "descriptor matcher: previous frames each frame is matched against (default 2)",
-             &o.matching.window, 1, 50);
+  o.matching.window = epitrack::tools::kMatchWindowAuto;
+  cl.option("match-window", "N|all|auto",
+            "descriptor matcher: previous frames each frame is matched against; all = every "
+            "pair of frames (the view graph of a photo set, whatever the order of its files); "
+            "auto (default) = all for at most 60 frames, else 2",
+            [&](const std::string& v, std::string& e) {
+              return epitrack::tools::parseMatchWindow(v, o.matching.window, e);
+            });
   cl.integer("features", "N",
              "2D features tracked (default " + std::to_string(epitrack::tools::kSolveFeatures) +
                  "; epitrack-track and the device: 300)",

@@ -64,9 +64,14 @@ int main(int argc, char** argv) {
             &matcher_text);
   cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
              &matching.features.max_features, 50, 100000);
-  cl.integer("match-window", "N",
-             "descriptor matcher: previous frames each frame is matched against (default 2)",
-             &matching.window, 1, 50);
+  matching.window = epitrack::tools::kMatchWindowAuto;
+  cl.option("match-window", "N|all|auto",
+            "descriptor matcher: previous frames each frame is matched against; all = every "
+            "pair of frames (the view graph of a photo set, whatever the order of its files); "
+            "auto (default) = all for at most 60 frames, else 2",
+            [&](const std::string& v, std::string& e) {
+              return epitrack::tools::parseMatchWindow(v, matching.window, e);
+            });
   cl.integer("features", "N", "features to keep (default 300)", &o.max_features, 1, 100000);
   cl.integer("window", "PX", "LK window side, odd (default 21)", &o.window, 3, 99);
   cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.levels, 0, 7);

@@ -50,4 +50,30 @@ RollingShutterRefinementResult refineRollingShutter(const TrackTable& tracks, Ca
                                                     std::vector<RollingShutterMotion>& motions,
                                                     const RollingShutterRefinementOptions& options);
 
+/// The readout estimated from a refinement made with a nominal readout (issue 27, --readout auto).
+///
+/// With a free motion per frame the readout is not observable by itself: the projection depends
+/// on the motions only through (line delay x w, line delay x v), so a refinement with any nonzero
+/// readout reaches the same poses and points, its motions scaled by nominal / true readout. What
+/// pins the readout is the frame-to-frame motion: the motion over a readout is the camera's motion
+/// at that instant, which the neighbouring frames' poses also give (central differences). The
+/// estimate is the least-squares slope of the fitted motions against the frame-to-frame ones,
+/// both as the image motion they cause at the frame's median depth (rotation about the image axes
+/// and sideways motion shear alike; their sum is what the rows observe):
+///   readout = nominal x sum <m_fit, m_fd> / sum |m_fd|^2.
+struct ReadoutEstimate {
+  double readout_frames = 0.0;  ///< estimate, clamped to [0, 1] frame interval
+  double std_error = 0.0;       ///< its standard error (frame intervals)
+  int frames = 0;               ///< frames with both neighbours solved, used
+  bool observable = false;      ///< enough frame-to-frame motion: std_error <= max_std_error
+};
+
+/// `motions` from refineRollingShutter with `nominal` (the frames and points it refined).
+/// `max_std_error`: frame intervals (0.03: 1 ms at 30 fps).
+ReadoutEstimate estimateReadout(const TrackTable& tracks, const RollingShutter& nominal, int rows,
+                                const std::vector<SolvedFrame>& frames,
+                                const std::vector<MapPoint>& points,
+                                const std::vector<RollingShutterMotion>& motions,
+                                double max_std_error = 0.03);
+
 }  // namespace epitrack

@@ -117,19 +117,43 @@ int intersectPoints(const TrackTable& tracks, const CameraIntrinsics& K,
   return done;
 }
 
+Eigen::Vector3d logRotation(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// The motion of the trajectory at each frame with both neighbours solved (central differences:
+// R_cw(f + d) = Exp(-w d) R_cw(f), c(f + d) = c(f) + v d, per frame interval); other frames keep
+// the motion they have.
+void trajectoryMotions(const std::vector<SolvedFrame>& frames,
+                       std::vector<RollingShutterMotion>& motions) {
+  for (std::size_t f = 1; f + 1 < frames.size(); ++f) {
+    const auto& prev = frames[f - 1];
+    const auto& cur = frames[f];
+    const auto& next = frames[f + 1];
+    if (!prev.solved || !cur.solved || !next.solved) continue;
+    motions[f].angular = 0.5 * (logRotation(prev.pose.R_cw * cur.pose.R_cw.transpose()) -
+                                logRotation(next.pose.R_cw * cur.pose.R_cw.transpose()));
+    motions[f].linear = 0.5 * (next.pose.centre() - prev.pose.centre());
+  }
+}
+
 // The joint adjustment of every solved frame's pose and motion, the points and (optionally) the
 // focal, on the observations within the threshold of their rolling-shutter reprojection.
 void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingShutter& shutter,
                    std::vector<SolvedFrame>& frames, std::vector<MapPoint>& points,
                    std::vector<RollingShutterMotion>& motions,
                    const RollingShutterRefinementOptions& options, const Workspace& w,
+                   std::span<const RollingShutterMotion> targets, double prior,
                    RollingShutterRefinementResult& result) {
   std::vector<int> camera_of_frame(frames.size(), -1);
   std::vector<BaCamera> cameras;
   std::vector<uint8_t> fixed;
   std::vector<RollingShutterMotion> ba_motions;
+  std::vector<RollingShutterMotion> ba_targets;
   for (std::size_t f = 0; f < frames.size(); ++f) {
     if (!frames[f].solved) continue;
+    if (!targets.empty()) ba_targets.push_back(targets[f]);
     camera_of_frame[f] = static_cast<int>(cameras.size());
     cameras.push_back(toBa(frames[f].pose));
     fixed.push_back(cameras.size() == 1 ? 1 : 0);  // the gauge: the first solved frame
@@ -163,7 +187,8 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   bo.huber_px = options.huber_px;
   bo.refine_focal = options.refine_focal;
   bo.function_tolerance = 1e-6;
-  bo.velocity_prior = options.resection.velocity_prior;
+  bo.velocity_prior = prior;
+  bo.motion_prior_mean = ba_targets;
   BaIntrinsics k{K.fx, K.fy / K.fx, K.cx, K.cy, K.k1, K.k2};
   const auto summary = ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);
   if (summary.status == BundleAdjustmentSummary::Status::kInvalidInput ||
@@ -204,8 +229,18 @@ RollingShutterRefinementResult refineRollingShutter(
     result.frames = resectFrames(tracks, K, shutter, frames, points, motions, options, w);
     result.points = intersectPoints(tracks, K, shutter, frames, points, motions, options, w);
   }
-  if (options.bundle_adjustment)
-    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, result);
+  if (options.bundle_adjustment) {
+    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, {},
+                  options.resection.velocity_prior, result);
+    if (options.trajectory_prior > 0.0) {
+      // Each frame's motion tied to the trajectory's at that frame (central differences of the
+      // poses just refined), then the adjustment again.
+      std::vector<RollingShutterMotion> targets = motions;
+      trajectoryMotions(frames, targets);
+      adjustJointly(tracks, K, shutter, frames, points, motions, options, w, targets,
+                    options.trajectory_prior, result);
+    }
+  }
   result.rms_after_px =
       reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
   return result;

@@ -28,6 +28,12 @@ struct RollingShutterRefinementOptions {
   bool refine_focal = false;      ///< also refine the focal (a self-calibrated solve's)
   int ba_iterations = 30;
   double huber_px = 1.0;  ///< the adjustment's Huber threshold
+  /// > 0: a second adjustment with each frame's motion pulled towards the trajectory's motion at
+  /// that frame (central differences of the refined poses), weighted like this many pixels per
+  /// radian (per world unit for v). Free per-frame motions with free points are nearly
+  /// degenerate (the scene bends to absorb them; Albl et al., "Degeneracies in rolling shutter
+  /// SfM", ECCV 2016); the trajectory removes that. Needs the readout right (given).
+  double trajectory_prior = 0.0;
 };
 
 struct RollingShutterRefinementResult {
@@ -69,11 +75,11 @@ struct ReadoutEstimate {
 };
 
 /// `motions` from refineRollingShutter with `nominal` (the frames and points it refined).
-/// `max_std_error`: frame intervals (0.03: 1 ms at 30 fps).
+/// `max_std_error`: frame intervals (0.1: 3.3 ms at 30 fps).
 ReadoutEstimate estimateReadout(const TrackTable& tracks, const RollingShutter& nominal, int rows,
                                 const std::vector<SolvedFrame>& frames,
                                 const std::vector<MapPoint>& points,
                                 const std::vector<RollingShutterMotion>& motions,
-                                double max_std_error = 0.03);
+                                double max_std_error = 0.1);
 
 }  // namespace epitrack

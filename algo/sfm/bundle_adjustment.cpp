@@ -213,6 +213,17 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
   return true;
 }
 
+Eigen::Matrix<double, 6, 1> BundleAdjuster::motionPriorResidual(std::size_t c) const {
+  Eigen::Matrix<double, 6, 1> r;
+  r.head<3>() = motions_[c].angular;
+  r.tail<3>() = motions_[c].linear;
+  if (!motion_prior_mean_.empty()) {
+    r.head<3>() -= motion_prior_mean_[c].angular;
+    r.tail<3>() -= motion_prior_mean_[c].linear;
+  }
+  return r;
+}
+
 double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
                                     std::span<const Eigen::Vector3d> points,
                                     std::span<const BaObservation> observations,
@@ -241,12 +252,10 @@ double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
   if (rms != nullptr)
     *rms = observations.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(observations.size()));
   if (rs) {
-    // The motion prior of the free cameras (0.5 |prior x motion|^2, as the residuals).
+    // The motion prior of the free cameras (0.5 |prior x (motion - mean)|^2, as the residuals).
     const double prior2 = velocity_prior_ * velocity_prior_;
     for (std::size_t c = 0; c < motions_.size(); ++c)
-      if (camera_slot_[c] >= 0)
-        cost +=
-            0.5 * prior2 * (motions_[c].angular.squaredNorm() + motions_[c].linear.squaredNorm());
+      if (camera_slot_[c] >= 0) cost += 0.5 * prior2 * motionPriorResidual(c).squaredNorm();
   }
   return cost;
 }
@@ -412,10 +421,8 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
     for (int c = 0; c < L.nc; ++c) {
       const int s = camera_slot_[static_cast<std::size_t>(c)];
       if (s < 0) continue;
-      const RollingShutterMotion& m = motions_[static_cast<std::size_t>(c)];
       for (int j = 0; j < 6; ++j) H(s + 6 + j, s + 6 + j) += prior2;
-      g.segment<3>(s + 6) += prior2 * m.angular;
-      g.segment<3>(s + 9) += prior2 * m.linear;
+      g.segment<6>(s + 6) += prior2 * motionPriorResidual(static_cast<std::size_t>(c));
     }
   }
   // Symmetrise the camera-intrinsics coupling.
@@ -595,6 +602,8 @@ BundleAdjustmentSummary BundleAdjuster::solve(
     motions_ = motions;
     shutter_ = shutter;
     velocity_prior_ = options.velocity_prior;
+    motion_prior_mean_ = options.motion_prior_mean;
+    if (!motion_prior_mean_.empty() && motion_prior_mean_.size() != motions.size()) return {};
   }
   BundleAdjustmentSummary summary =
       solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);

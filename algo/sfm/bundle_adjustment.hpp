@@ -50,6 +50,11 @@ struct BundleAdjustmentOptions {
   /// effect) and is negligible against the rows' evidence otherwise (about f x tau px per radian
   /// per point, thousands).
   double velocity_prior = 1.0;
+  /// What each camera's motion prior pulls towards (one per camera; empty: zero). The rolling-
+  /// shutter refinement passes the frame-to-frame motion here: free per-frame motions with points
+  /// free are nearly degenerate (the scene can bend to absorb them: Albl et al., ECCV 2016), and
+  /// tying each to the trajectory's motion removes that.
+  std::span<const RollingShutterMotion> motion_prior_mean;
 };
 
 struct BundleAdjustmentSummary {
@@ -193,6 +198,9 @@ class BundleAdjuster {
   RollingShutter shutter_;
   std::span<RollingShutterMotion> motions_;
   double velocity_prior_ = 0.0;
+  std::span<const RollingShutterMotion> motion_prior_mean_;
+  /// The motion prior's residual of camera c: its motion less the prior's mean.
+  [[nodiscard]] Eigen::Matrix<double, 6, 1> motionPriorResidual(std::size_t c) const;
   std::vector<RollingShutterMotion> motions_backup_;
   std::vector<Eigen::Matrix<double, 6, 3>> Wv_;  // per observation J_motion^T W J_p
   std::vector<int> pair_begin_;                  // per point, its first pair entry

@@ -1,6 +1,9 @@
 #include "algo/sfm/rolling_shutter_refinement.hpp"
 
+#include <algorithm>
 #include <cmath>
+
+#include <Eigen/Geometry>
 
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/undistort.hpp"
@@ -114,19 +117,43 @@ int intersectPoints(const TrackTable& tracks, const CameraIntrinsics& K,
   return done;
 }
 
+Eigen::Vector3d logRotation(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// The motion of the trajectory at each frame with both neighbours solved (central differences:
+// R_cw(f + d) = Exp(-w d) R_cw(f), c(f + d) = c(f) + v d, per frame interval); other frames keep
+// the motion they have.
+void trajectoryMotions(const std::vector<SolvedFrame>& frames,
+                       std::vector<RollingShutterMotion>& motions) {
+  for (std::size_t f = 1; f + 1 < frames.size(); ++f) {
+    const auto& prev = frames[f - 1];
+    const auto& cur = frames[f];
+    const auto& next = frames[f + 1];
+    if (!prev.solved || !cur.solved || !next.solved) continue;
+    motions[f].angular = 0.5 * (logRotation(prev.pose.R_cw * cur.pose.R_cw.transpose()) -
+                                logRotation(next.pose.R_cw * cur.pose.R_cw.transpose()));
+    motions[f].linear = 0.5 * (next.pose.centre() - prev.pose.centre());
+  }
+}
+
 // The joint adjustment of every solved frame's pose and motion, the points and (optionally) the
 // focal, on the observations within the threshold of their rolling-shutter reprojection.
 void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingShutter& shutter,
                    std::vector<SolvedFrame>& frames, std::vector<MapPoint>& points,
                    std::vector<RollingShutterMotion>& motions,
                    const RollingShutterRefinementOptions& options, const Workspace& w,
+                   std::span<const RollingShutterMotion> targets, double prior,
                    RollingShutterRefinementResult& result) {
   std::vector<int> camera_of_frame(frames.size(), -1);
   std::vector<BaCamera> cameras;
   std::vector<uint8_t> fixed;
   std::vector<RollingShutterMotion> ba_motions;
+  std::vector<RollingShutterMotion> ba_targets;
   for (std::size_t f = 0; f < frames.size(); ++f) {
     if (!frames[f].solved) continue;
+    if (!targets.empty()) ba_targets.push_back(targets[f]);
     camera_of_frame[f] = static_cast<int>(cameras.size());
     cameras.push_back(toBa(frames[f].pose));
     fixed.push_back(cameras.size() == 1 ? 1 : 0);  // the gauge: the first solved frame
@@ -160,7 +187,8 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   bo.huber_px = options.huber_px;
   bo.refine_focal = options.refine_focal;
   bo.function_tolerance = 1e-6;
-  bo.velocity_prior = options.resection.velocity_prior;
+  bo.velocity_prior = prior;
+  bo.motion_prior_mean = ba_targets;
   BaIntrinsics k{K.fx, K.fy / K.fx, K.cx, K.cy, K.k1, K.k2};
   const auto summary = ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);
   if (summary.status == BundleAdjustmentSummary::Status::kInvalidInput ||
@@ -201,11 +229,96 @@ RollingShutterRefinementResult refineRollingShutter(
     result.frames = resectFrames(tracks, K, shutter, frames, points, motions, options, w);
     result.points = intersectPoints(tracks, K, shutter, frames, points, motions, options, w);
   }
-  if (options.bundle_adjustment)
-    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, result);
+  if (options.bundle_adjustment) {
+    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, {},
+                  options.resection.velocity_prior, result);
+    if (options.trajectory_prior > 0.0) {
+      // Each frame's motion tied to the trajectory's at that frame (central differences of the
+      // poses just refined), then the adjustment again.
+      std::vector<RollingShutterMotion> targets = motions;
+      trajectoryMotions(frames, targets);
+      adjustJointly(tracks, K, shutter, frames, points, motions, options, w, targets,
+                    options.trajectory_prior, result);
+    }
+  }
   result.rms_after_px =
       reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
   return result;
+}
+
+namespace {
+
+// Rotation vector of R (the inverse of expSo3), for the small frame-to-frame rotations.
+Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// The image motion (normalized coordinates per frame interval) a readout motion causes at the
+// point x_c of the camera: x_c' = -w x x_c - R_cw v, then the projection's derivative.
+Eigen::Vector2d imageMotion(const PoseCw& pose, const RollingShutterMotion& m,
+                            const Eigen::Vector3d& x_c) {
+  const Eigen::Vector3d d = -m.angular.cross(x_c) - pose.R_cw * m.linear;
+  const double iz = 1.0 / x_c.z();
+  return {(d.x() - x_c.x() * iz * d.z()) * iz, (d.y() - x_c.y() * iz * d.z()) * iz};
+}
+
+}  // namespace
+
+ReadoutEstimate estimateReadout(const TrackTable& tracks, const RollingShutter& nominal, int rows,
+                                const std::vector<SolvedFrame>& frames,
+                                const std::vector<MapPoint>& points,
+                                const std::vector<RollingShutterMotion>& motions,
+                                double max_std_error) {
+  ReadoutEstimate e;
+  const double nominal_frames = nominal.line_delay * (rows - 1);
+  if (!(nominal_frames > 0.0) || motions.size() != frames.size()) return e;
+  std::vector<int> point_of_track(static_cast<std::size_t>(tracks.trackCount()), -1);
+  for (std::size_t p = 0; p < points.size(); ++p)
+    if (points[p].valid && points[p].track >= 0)
+      point_of_track[static_cast<std::size_t>(points[p].track)] = static_cast<int>(p);
+  // Regressed over every observed point of the frames with both neighbours solved: the image
+  // motion of each point (where the rows see it) from the fitted motion against the frame-to-frame
+  // one. Sums of 2-vectors; the residual variance per component.
+  double sxy = 0.0, sxx = 0.0, syy = 0.0;
+  long n = 0;
+  for (int f = 1; f + 1 < static_cast<int>(frames.size()); ++f) {
+    const auto& prev = frames[static_cast<std::size_t>(f - 1)];
+    const auto& cur = frames[static_cast<std::size_t>(f)];
+    const auto& next = frames[static_cast<std::size_t>(f + 1)];
+    if (!prev.solved || !cur.solved || !next.solved) continue;
+    // R_cw(f + d) = Exp(-w d) R_cw(f), c(f + d) = c(f) + v d (rolling_shutter.hpp).
+    RollingShutterMotion between;
+    between.angular = 0.5 * (logSo3(prev.pose.R_cw * cur.pose.R_cw.transpose()) -
+                             logSo3(next.pose.R_cw * cur.pose.R_cw.transpose()));
+    between.linear = 0.5 * (next.pose.centre() - prev.pose.centre());
+    int used = 0;
+    for (const auto& o : tracks.frame(f)) {
+      const int p = point_of_track[static_cast<std::size_t>(o.track)];
+      if (p < 0) continue;
+      const Eigen::Vector3d x_c = cur.pose.toCamera(points[static_cast<std::size_t>(p)].X);
+      if (!(x_c.z() > 0.0)) continue;
+      const Eigen::Vector2d fit = imageMotion(cur.pose, motions[static_cast<std::size_t>(f)], x_c);
+      const Eigen::Vector2d fd = imageMotion(cur.pose, between, x_c);
+      sxy += fit.dot(fd);
+      sxx += fd.squaredNorm();
+      syy += fit.squaredNorm();
+      ++n;
+      ++used;
+    }
+    if (used > 0) ++e.frames;
+  }
+  if (e.frames < 5 || n < 20 || !(sxx > 0.0)) return e;
+  const double slope = sxy / sxx;
+  // The fitted motions' deviation from the slope (their own noise and the motion's change within
+  // a frame interval) gives the error. A frame's points share its motion, so their deviations are
+  // not independent: the slope's variance is the per-point residual variance times the points per
+  // frame over sxx, i.e. sse / (frames sxx) (frames - 1 for the slope fitted).
+  const double sse = std::max(0.0, syy - slope * sxy);
+  e.std_error = nominal_frames * std::sqrt(sse / (static_cast<double>(e.frames - 1) * sxx));
+  e.readout_frames = std::clamp(nominal_frames * slope, 0.0, 1.0);
+  e.observable = std::isfinite(e.std_error) && e.std_error <= max_std_error;
+  return e;
 }
 
 }  // namespace epitrack

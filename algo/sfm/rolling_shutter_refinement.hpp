@@ -28,6 +28,12 @@ struct RollingShutterRefinementOptions {
   bool refine_focal = false;      ///< also refine the focal (a self-calibrated solve's)
   int ba_iterations = 30;
   double huber_px = 1.0;  ///< the adjustment's Huber threshold
+  /// > 0: a second adjustment with each frame's motion pulled towards the trajectory's motion at
+  /// that frame (central differences of the refined poses), weighted like this many pixels per
+  /// radian (per world unit for v). Free per-frame motions with free points are nearly
+  /// degenerate (the scene bends to absorb them; Albl et al., "Degeneracies in rolling shutter
+  /// SfM", ECCV 2016); the trajectory removes that. Needs the readout right (given).
+  double trajectory_prior = 0.0;
 };
 
 struct RollingShutterRefinementResult {
@@ -49,5 +55,31 @@ RollingShutterRefinementResult refineRollingShutter(const TrackTable& tracks, Ca
                                                     std::vector<MapPoint>& points,
                                                     std::vector<RollingShutterMotion>& motions,
                                                     const RollingShutterRefinementOptions& options);
+
+/// The readout estimated from a refinement made with a nominal readout (issue 27, --readout auto).
+///
+/// With a free motion per frame the readout is not observable by itself: the projection depends
+/// on the motions only through (line delay x w, line delay x v), so a refinement with any nonzero
+/// readout reaches the same poses and points, its motions scaled by nominal / true readout. What
+/// pins the readout is the frame-to-frame motion: the motion over a readout is the camera's motion
+/// at that instant, which the neighbouring frames' poses also give (central differences). The
+/// estimate is the least-squares slope of the fitted motions against the frame-to-frame ones,
+/// both as the image motion they cause at the frame's median depth (rotation about the image axes
+/// and sideways motion shear alike; their sum is what the rows observe):
+///   readout = nominal x sum <m_fit, m_fd> / sum |m_fd|^2.
+struct ReadoutEstimate {
+  double readout_frames = 0.0;  ///< estimate, clamped to [0, 1] frame interval
+  double std_error = 0.0;       ///< its standard error (frame intervals)
+  int frames = 0;               ///< frames with both neighbours solved, used
+  bool observable = false;      ///< enough frame-to-frame motion: std_error <= max_std_error
+};
+
+/// `motions` from refineRollingShutter with `nominal` (the frames and points it refined).
+/// `max_std_error`: frame intervals (0.1: 3.3 ms at 30 fps).
+ReadoutEstimate estimateReadout(const TrackTable& tracks, const RollingShutter& nominal, int rows,
+                                const std::vector<SolvedFrame>& frames,
+                                const std::vector<MapPoint>& points,
+                                const std::vector<RollingShutterMotion>& motions,
+                                double max_std_error = 0.1);
 
 }  // namespace epitrack

@@ -133,3 +133,32 @@ TEST_CASE("Rolling shutter: a shaky clip solved with the readout given", "[sfm][
   // within a readout and the six more unknowns per frame, not the optimiser.
   CHECK(rolling.ate_rmse_rel < 4.0 * reference.ate_rmse_rel);
 }
+
+TEST_CASE("Rolling shutter: the readout estimated on a shaky clip, and zero on a global shutter",
+          "[sfm][rs][slow]") {
+  // Refined with a nominal readout of half a frame interval, as epitrack-solve --readout auto.
+  const auto estimate = [](RsClip& c) {
+    const Solver s = solveGlobal(c);
+    std::vector<SolvedFrame> frames = s.frames();
+    std::vector<MapPoint> points = s.points();
+    std::vector<RollingShutterMotion> motions;
+    const RollingShutter nominal = RollingShutter::fromReadout(0.5, 480, 239.5);
+    refineRollingShutter(c.tracks, c.K, nominal, frames, points, motions, {});
+    return estimateReadout(c.tracks, nominal, 480, frames, points, motions);
+  };
+  RsClip still;
+  makeClip(still, synth::SceneKind::kShake, 120, 0.0);
+  const ReadoutEstimate zero = estimate(still);
+  RsClip c;
+  makeClip(c, synth::SceneKind::kShake, 120, 30.0 / 33.3);
+  const ReadoutEstimate rs = estimate(c);
+  INFO("global shutter: " << zero.readout_frames << " +- " << zero.std_error << " frames over "
+                          << zero.frames << "; rolling, 0.9 frames: " << rs.readout_frames << " +- "
+                          << rs.std_error << " over " << rs.frames);
+  CHECK(zero.frames > 100);
+  // Zero within its error: epitrack-solve keeps the global-shutter solve.
+  CHECK(zero.readout_frames <= std::max(3.0 * zero.std_error, 0.03));
+  CHECK(rs.observable);
+  CHECK(rs.readout_frames > 3.0 * rs.std_error);
+  CHECK(std::fabs(rs.readout_frames - 0.9) < 0.45);
+}

@@ -174,11 +174,16 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("focal_refined", true);
     j.field("focal_given_px", rec.focal_given_px);
   }
-  if (rec.readout_ms > 0.0) {
+  if (!rec.readout_source.empty()) {
     j.key("rolling_shutter");
     j.beginObject();
     j.field("readout_ms", rec.readout_ms);
-    j.field("readout_source", std::string("given"));
+    j.field("readout_source", rec.readout_source);
+    j.field("readout_observable", rec.readout_observable);
+    if (rec.readout_source == "estimated") {
+      j.field("readout_std_error_ms", rec.readout_std_error_ms);
+      j.field("readout_applied", rec.readout_applied);
+    }
     j.field("reference_row", rec.readout_reference_row);
     j.field("rms_before_px", rec.readout_rms_before_px);
     j.field("rms_after_px", rec.readout_rms_after_px);

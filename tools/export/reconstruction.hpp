@@ -136,7 +136,14 @@ struct Reconstruction {
   double readout_reference_row = 0.0;
   double readout_rms_before_px = 0.0;
   double readout_rms_after_px = 0.0;
-  int readout_ba_iterations = 0;   ///< the joint rolling-shutter adjustment's iterations
+  int readout_ba_iterations = 0;  ///< the joint rolling-shutter adjustment's iterations
+  /// "given" (--readout-ms), "estimated" (--readout auto), "" (global shutter: no block).
+  std::string readout_source;
+  bool readout_observable = true;     ///< --readout auto: the estimate's standard error was small
+  double readout_std_error_ms = 0.0;  ///< --readout auto: that standard error
+  /// --readout auto: the model was kept (false: the estimate was not significantly above zero or
+  /// not observable, and the global-shutter solve is written unchanged).
+  bool readout_applied = true;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see

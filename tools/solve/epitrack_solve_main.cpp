@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   o.scene.min_plane_fraction = 0.05;
   o.tracker.max_features = epitrack::tools::kSolveFeatures;
   std::string distortion = "none";
+  std::string readout_choice = "none";
   bool quiet = false;
   CommandLine cl(
       "epitrack-solve", "INPUT --out DIR [options]",
@@ -68,6 +69,12 @@ int main(int argc, char** argv) {
           "points seen from the rows' poses; the poses written are the middle row's (default 0: "
           "global shutter)",
           &o.readout_ms, 0.0, 1000.0);
+  cl.choice("readout", {"auto", "none"},
+            "rolling shutter: auto = estimate the readout (the motion within each frame against "
+            "the motion between frames); the model is used when the estimate is observable and "
+            "above zero, summary.json says readout_ms, readout_source and readout_observable "
+            "(default none)",
+            &readout_choice);
   cl.text("tracks", "CSV",
           "solve these 2D tracks (tracks.csv: frame,track_id,x,y, frames numbered as "
           "epitrack-track numbers INPUT's readable frames) instead of tracking INPUT; INPUT "
@@ -149,6 +156,9 @@ int main(int argc, char** argv) {
     return cl.usageError("--origin: " + error);
   if (object_scale > 0.0) o.object_scale = object_scale;
   o.distortion = distortion == "k1k2" ? 2 : distortion == "k1" ? 1 : 0;
+  o.readout_auto = readout_choice == "auto";
+  if (o.readout_auto && o.readout_ms > 0.0)
+    return cl.usageError("give either --readout-ms or --readout auto, not both");
   epitrack::tools::parseMatcher(matcher, o.matcher);
   o.solver.seed = static_cast<uint64_t>(seed);
   if (quiet) o.progress = epitrack::io::ProgressReporter::Mode::kQuiet;

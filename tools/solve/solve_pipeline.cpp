@@ -286,7 +286,8 @@ void collectGeometry(SolveRun& run) {
 void refineReadout(SolveRun& run, const Solver& solver) {
   run.solved_frames = solver.frames();
   run.solved_points = solver.points();
-  if (!(run.o.readout_ms > 0.0) || solver.solvedFrames() == 0) return;
+  const bool given = run.o.readout_ms > 0.0;
+  if (!(given || run.o.readout_auto) || solver.solvedFrames() == 0) return;
   const double fps = run.source->info().fps > 0.0 ? run.source->info().fps : 30.0;
   const SolverSummary s = solver.summary();
   CameraIntrinsics K = CameraIntrinsics::centered(run.width, run.height, s.focal_px);
@@ -296,11 +297,17 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   K.k1 = s.k1;
   K.k2 = s.k2;
   const double reference_row = 0.5 * (run.height - 1);
+  // --readout auto refines with a nominal readout of half a frame interval: with a free motion
+  // per frame any nonzero readout gives the same poses and points, the motions scaled
+  // (estimateReadout), so the estimate only rescales them.
+  constexpr double kNominalReadoutFrames = 0.5;
+  const double readout_frames = given ? run.o.readout_ms * fps / 1000.0 : kNominalReadoutFrames;
   const RollingShutter shutter =
-      RollingShutter::fromReadout(run.o.readout_ms * fps / 1000.0, run.height, reference_row);
-  run.progress.message("rolling shutter: refining " + std::to_string(solver.solvedFrames()) +
-                       " frames with a " + std::to_string(run.o.readout_ms).substr(0, 5) +
-                       " ms readout");
+      RollingShutter::fromReadout(readout_frames, run.height, reference_row);
+  run.progress.message(
+      "rolling shutter: refining " + std::to_string(solver.solvedFrames()) + " frames" +
+      (given ? " with a " + std::to_string(run.o.readout_ms).substr(0, 5) + " ms readout"
+             : ", readout to be estimated"));
   std::vector<RollingShutterMotion> motions;
   RollingShutterRefinementOptions options;
   options.reproj_threshold_px = 2.0 * run.so.reproj_threshold_px;
@@ -310,12 +317,37 @@ void refineReadout(SolveRun& run, const Solver& solver) {
                          s.focal_source == FocalSource::kFallback || run.so.refine_given_focal;
   const auto r = refineRollingShutter(run.tracks, K, shutter, run.solved_frames, run.solved_points,
                                       motions, options);
-  if (options.refine_focal && r.ba_iterations > 0) run.readout_focal_px = K.fx;
-  run.rec.readout_ms = run.o.readout_ms;
   run.rec.readout_reference_row = reference_row;
   run.rec.readout_rms_before_px = r.rms_before_px;
   run.rec.readout_rms_after_px = r.rms_after_px;
   run.rec.readout_ba_iterations = r.ba_iterations;
+  bool keep = true;
+  if (given) {
+    run.rec.readout_ms = run.o.readout_ms;
+    run.rec.readout_source = "given";
+  } else {
+    const ReadoutEstimate e = estimateReadout(run.tracks, shutter, run.height, run.solved_frames,
+                                              run.solved_points, motions);
+    run.rec.readout_source = "estimated";
+    run.rec.readout_ms = e.readout_frames * 1000.0 / fps;
+    run.rec.readout_std_error_ms = e.std_error * 1000.0 / fps;
+    run.rec.readout_observable = e.observable;
+    // Kept when observable and clearly above zero (three standard errors and 1 ms): a global
+    // shutter's estimate is zero within its error, and its solve is then written unchanged
+    // (the motions would only fit noise).
+    keep = e.observable && e.readout_frames > std::max(3.0 * e.std_error, 0.001 * fps);
+    run.rec.readout_applied = keep;
+    run.progress.message("rolling shutter: readout estimated " +
+                         std::to_string(run.rec.readout_ms).substr(0, 5) + " ms +- " +
+                         std::to_string(run.rec.readout_std_error_ms).substr(0, 5) + " ms over " +
+                         std::to_string(e.frames) + " frames" +
+                         (keep ? "" : ", not used (global-shutter solve kept)"));
+    if (!keep) {
+      run.solved_frames = solver.frames();
+      run.solved_points = solver.points();
+    }
+  }
+  if (keep && options.refine_focal && r.ba_iterations > 0) run.readout_focal_px = K.fx;
   run.clock.lap("rolling_shutter");
 }
 

@@ -31,6 +31,9 @@ struct SolveCommandOptions {
   /// Rolling shutter (--readout-ms): the time from the first row's exposure to the last's, in
   /// milliseconds (0: a global shutter). The frames' poses are then the middle row's.
   double readout_ms = 0.0;
+  /// --readout auto: the readout estimated (algo/sfm/rolling_shutter_refinement.hpp
+  /// estimateReadout); the model is kept when the estimate is observable and clearly above zero.
+  bool readout_auto = false;
   SceneFrameOptions scene;  ///< --origin (defaults tuned in the constructor)
   std::string origin_text = "plane";
   std::string render = "none";   ///< towers | cube | axes | none

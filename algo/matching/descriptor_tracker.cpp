@@ -297,11 +297,11 @@ void DescriptorTracker::matchPair(const Slot& older, const Slot& current) {
   const uint64_t seed = options_.fundamental.ransac.seed +
                         static_cast<uint64_t>(older.frame) * 7919u +
                         static_cast<uint64_t>(current.frame);
+  const bool chain_pair = current.frame - older.frame <= options_.chain_window;
   const auto acceptable = [&](int inliers, int count) {
-    return inliers >= options_.min_inliers &&
+    return inliers >= (chain_pair ? options_.min_inliers : options_.graph_min_inliers) &&
            inliers >= options_.min_inlier_ratio * static_cast<double>(count);
   };
-  const bool chain_pair = current.frame - older.frame <= options_.chain_window;
   Eigen::Matrix3d F;
   int count = 0, inliers = 0;
   bool oriented = options_.orientation == DescriptorOrientation::kOriented;

@@ -71,6 +71,9 @@ struct SolverOptions {
   int keyframe_min_pair_inliers = 30;
   int keyframe_min_scale_points = 5;
   int keyframe_global_every = 5;  ///< a global adjustment after every this many registrations
+  /// When no view is left to register: global adjustment, re-triangulation of every solved
+  /// view's tracks, and every unregistered view tried again, at most this many times.
+  int keyframe_retry_rounds = 2;
   /// A reconstruction that solves fewer than this fraction of the frames (views) is `kPartial`,
   /// never `kOk` (issues 20 and 22: a solve of 8 frames in 200 is not a result to call done).
   double min_solved_fraction = 0.9;

@@ -1,6 +1,7 @@
 // Solver: the key-frame mode (SolverOptions::keyframe_collection).
 #include "algo/sfm/solver.hpp"
 
+#include <algorithm>
 #include <vector>
 
 #include "algo/geometry/essential.hpp"
@@ -146,7 +147,7 @@ bool Solver::registerBestViews() {
     }
     return c;
   };
-  int accepted = 0;
+  int accepted = 0, retry_rounds = 0;
   const auto accept = [&](int f) {
     addKeyframe(f);
     triangulateNewTracks(f);
@@ -195,7 +196,22 @@ bool Solver::registerBestViews() {
         }
       }
     }
-    if (rel < 0 || rel_common < options_.keyframe_min_pair_inliers) break;
+    if (rel < 0 || rel_common < options_.keyframe_min_pair_inliers) {
+      // Nothing left to try on this map: a global adjustment and every solved view's tracks
+      // triangulated again (points refused while their views' poses were young), then every
+      // unregistered view is tried once more; at most keyframe_retry_rounds times, and only
+      // when the map grew.
+      if (retry_rounds >= options_.keyframe_retry_rounds) break;
+      ++retry_rounds;
+      adjust(true);
+      int added = 0;
+      for (int f = 0; f < n; ++f)
+        if (frames_[static_cast<std::size_t>(f)].solved) added += triangulateNewTracks(f);
+      if (added == 0) break;
+      std::fill(tried_at.begin(), tried_at.end(), -1);
+      std::fill(relative_tried_at.begin(), relative_tried_at.end(), -1);
+      continue;
+    }
     relative_tried_at[static_cast<std::size_t>(rel)] = solved;
     const bool ok = registerByRelativePose(rel, rel_ref);
     if (ok) accept(rel);

@@ -144,6 +144,7 @@ TEST_CASE("templeRing, all 47 views: ok only when 90 % register, else partial wi
     const SolveResult r = solveAndEvaluate(dir, seq + "/frames", seq + "/intrinsics.txt",
                                            seq + "/groundtruth.txt", "--matcher " + matcher);
     INFO("--matcher " << matcher << ": " << r.summary.substr(0, 1500));
+    INFO(r.eval);
     const double frames = jsonNumber(r.summary, "frames");
     const double solved = jsonNumber(r.summary, "solved_frames");
     std::printf("templeRing, 47 views, --matcher %s: %.0f/%.0f registered, status %s, exit %d\n",
@@ -153,6 +154,16 @@ TEST_CASE("templeRing, all 47 views: ok only when 90 % register, else partial wi
     // Every view is in exactly one range: registered, or unregistered with a cause.
     CHECK(framesInRanges(r.summary, "solved_ranges") == solved);
     CHECK(framesInRanges(r.summary, "unsolved_ranges") == frames - solved);
+    if (matcher == "descriptors") {
+      // The view graph (every pair matched, --match-window auto = all for 47 views): every view
+      // registers. Measured 2026-12-03: 47/47, ATE 0.00042 of the path. The rotation error is not
+      // checked: views 31-46 come out 180 degrees about their optical axis from groundtruth.txt
+      // (0.42 deg mean over views 0-30, 179.8 over 31-46, each part aligned alone), which no
+      // solve of these images can match: the README's rotation of those images or their ground
+      // truth is off by a half turn.
+      CHECK(solved == frames);
+      CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.001);
+    }
     if (solved >= 0.9 * frames) {
       CHECK(jsonString(r.summary, "status") == "ok");
       CHECK(r.exit_code == 0);

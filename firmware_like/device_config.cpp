@@ -77,7 +77,7 @@ struct Key {
 
 // An integer key in [lo, hi]; `set` stores it (and may refuse it with a reason).
 Key intKey(const std::string& help, long lo, long hi,
-           std::function<bool(DeviceConfig&, int, std::string&)> set) {
+           const std::function<bool(DeviceConfig&, int, std::string&)>& set) {
   return {help,
           [=](DeviceConfig& c, const std::string& v, std::string& e) {
             int x = 0;
@@ -86,7 +86,8 @@ Key intKey(const std::string& help, long lo, long hi,
           rangeText(lo, hi)};
 }
 
-Key intKey(const std::string& help, long lo, long hi, std::function<int&(DeviceConfig&)> field) {
+Key intKey(const std::string& help, long lo, long hi,
+           const std::function<int&(DeviceConfig&)>& field) {
   return intKey(help, lo, hi, [field](DeviceConfig& c, int x, std::string&) {
     field(c) = x;
     return true;
@@ -94,7 +95,7 @@ Key intKey(const std::string& help, long lo, long hi, std::function<int&(DeviceC
 }
 
 Key realKey(const std::string& help, double lo, double hi,
-            std::function<double&(DeviceConfig&)> field) {
+            const std::function<double&(DeviceConfig&)>& field) {
   return {help,
           [=](DeviceConfig& c, const std::string& v, std::string& e) {
             return parseReal(v, lo, hi, field(c), e);
@@ -102,7 +103,7 @@ Key realKey(const std::string& help, double lo, double hi,
           rangeText(lo, hi)};
 }
 
-Key boolKey(const std::string& help, std::function<bool&(DeviceConfig&)> field) {
+Key boolKey(const std::string& help, const std::function<bool&(DeviceConfig&)>& field) {
   return {help + " (true/false)",
           [=](DeviceConfig& c, const std::string& v, std::string& e) {
             return parseBool(v, field(c), e);
@@ -111,7 +112,7 @@ Key boolKey(const std::string& help, std::function<bool&(DeviceConfig&)> field) 
 }
 
 Key textKey(const std::string& help, bool allow_empty,
-            std::function<std::string&(DeviceConfig&)> field) {
+            const std::function<std::string&(DeviceConfig&)>& field) {
   return {help,
           [=](DeviceConfig& c, const std::string& v, std::string& e) {
             if (v.empty() && !allow_empty) {
@@ -295,12 +296,14 @@ bool applyConfigText(DeviceConfig& config, const std::string& text, const std::s
     if (line.empty()) continue;
     const auto eq = line.find('=');
     if (eq == std::string::npos) {
-      error = origin + ":" + std::to_string(line_no) + ": expected 'key = value'";
+      error = origin;
+      error.append(":").append(std::to_string(line_no)).append(": expected 'key = value'");
       return false;
     }
     std::string why;
     if (!applyConfigValue(config, trim(line.substr(0, eq)), trim(line.substr(eq + 1)), why)) {
-      error = origin + ":" + std::to_string(line_no) + ": " + why;
+      error = origin;
+      error.append(":").append(std::to_string(line_no)).append(": ").append(why);
       return false;
     }
   }

@@ -4,6 +4,7 @@
 #   tools/deps.sh bench       + OpenCV (the optional benchmark comparison)
 #   tools/deps.sh cross-aarch64 | cross-armhf   cross compiler, target libraries (multiarch), qemu-user
 #   tools/deps.sh fuzz        clang and its sanitizer runtimes (libFuzzer)
+#   tools/deps.sh tidy        clang, clang-tidy (with run-clang-tidy), clang-format (.ci/tidy.sh)
 #   tools/deps.sh video       ffmpeg (ffprobe checks of written videos)
 #   tools/deps.sh browser     chromium (report rendering check)
 #   tools/deps.sh colmap      COLMAP (the reference solves of tools/figures/colmap_reference.sh)
@@ -19,6 +20,7 @@ for group in "${@:-base}"; do
     cross-aarch64) add_arch=arm64; want+=(g++-aarch64-linux-gnu qemu-user libturbojpeg0-dev:arm64 libpng-dev:arm64) ;;
     cross-armhf) add_arch=armhf; want+=(g++-arm-linux-gnueabihf qemu-user libturbojpeg0-dev:armhf libpng-dev:armhf) ;;
     fuzz) want+=(clang libclang-rt-dev) ;;
+    tidy) want+=(clang clang-tidy clang-format python3) ;;
     video) want+=(ffmpeg) ;;
     browser) want+=(chromium) ;;
     colmap) want+=(colmap) ;;

@@ -180,7 +180,7 @@ EPITRACK_AVX512_INLINE void affineBody(ImageView<const uint8_t> image, const LkA
   const __m512i lane_y = _mm512_mullo_epi32(column, _mm512_set1_epi32(warp.yu));
   const __mmask16 tail_mask =
       static_cast<__mmask16>(_mm512_cmpgt_epi32_mask(_mm512_set1_epi32(tail), column));
-  Setup c;
+  Setup c{};
   c.one = _mm512_set1_epi32(kOne);
   c.fraction = _mm512_set1_epi32(kOne - 1);
   c.round_w = _mm512_set1_epi32(kOne >> 1);
@@ -205,7 +205,7 @@ EPITRACK_AVX512_INLINE void affineBody(ImageView<const uint8_t> image, const LkA
   for (int p = 0; p < pairs; ++p) {
     const int v = 2 * p;
     const bool single = v + 1 == side;  // the last row of an odd window
-    PairSums r;
+    PairSums r{};
     r.xg = warp.row_x[v];
     r.yg = warp.row_y[v];
     r.xg1 = single ? r.xg : warp.row_x[v + 1];  // (an absent row: masked off)

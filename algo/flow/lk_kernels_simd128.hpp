@@ -148,7 +148,7 @@ void affineSums128(ImageView<const uint8_t> image, const LkAffineWarp& warp, int
       w0 = as16(bitOr(w00, sll32<16>(w01)));
       w1 = as16(bitOr(w10, sll32<16>(w11)));
     };
-    Weights w;
+    Weights w{};  // every lane is written below
     pairs(p00_lo, p01_lo, p10_lo, w.w0_lo, w.w1_lo);
     pairs(p00_hi, p01_hi, p10_hi, w.w0_hi, w.w1_hi);
     return w;

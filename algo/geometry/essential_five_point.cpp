@@ -65,6 +65,7 @@ Poly multiply(const Poly& p, int p_degree, const Poly& q, int q_degree) {
   for (int i = kFirstOfDegree[p_degree]; i < kMonomials; ++i) {
     const double pi = p[static_cast<std::size_t>(i)];
     for (int j = kFirstOfDegree[q_degree]; j < kMonomials; ++j) {
+      // NOLINTNEXTLINE(bugprone-signed-char-misuse): -1 marks "no product", the sign is wanted
       const int k = kProduct.index[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
       EPITRACK_ASSERT(k >= 0);  // products stay within degree 3 by construction
       r[static_cast<std::size_t>(k)] += pi * q[static_cast<std::size_t>(j)];

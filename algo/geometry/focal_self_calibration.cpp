@@ -29,7 +29,7 @@ double costCentred(const Eigen::Matrix3d& Fc, double f) {
   E.topRightCorner<2, 1>() *= f;
   E.bottomLeftCorner<1, 2>() *= f;
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(E);
-  const Eigen::Vector3d s = svd.singularValues();
+  const Eigen::Vector3d& s = svd.singularValues();
   const double d = s(0) + s(1);
   if (!(d > 0.0)) return 1.0;
   return (s(0) - s(1)) / d;
@@ -194,7 +194,7 @@ FocalPairEstimate estimateFocalFromRotation(const Eigen::Matrix3d& H, int width,
     const Eigen::Matrix3d K = Eigen::Vector3d(f, f, 1.0).asDiagonal();
     const Eigen::Matrix3d Kinv = Eigen::Vector3d(1.0 / f, 1.0 / f, 1.0).asDiagonal();
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(Kinv * Hc * K);
-    const Eigen::Vector3d s = svd.singularValues();
+    const Eigen::Vector3d& s = svd.singularValues();
     return (s(0) - s(2)) / (s(0) + s(2));
   };
   const double lo = std::log(o.min_focal_widths * width), hi = std::log(o.max_focal_widths * width);

@@ -116,7 +116,7 @@ bool fitFundamentalEightPoint(std::span<const Eigen::Vector2d> x1,
   Eigen::Matrix<double, 9, 9> full = AtA.selfadjointView<Eigen::Upper>();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(full);
   if (es.info() != Eigen::Success) return false;
-  const Eigen::Vector<double, 9> ev = es.eigenvalues();
+  const Eigen::Vector<double, 9>& ev = es.eigenvalues();
   // A second (near-)zero eigenvalue means the constraints do not fix F (degenerate configuration).
   if (!(ev(1) > 1e-12 * std::max(1e-300, ev(8)))) return false;
   const Eigen::Matrix3d Fn = enforceRank2(fromRowMajor(es.eigenvectors().col(0)));

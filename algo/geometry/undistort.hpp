@@ -12,7 +12,7 @@ namespace epitrack {
 /// few steps.
 inline Eigen::Vector2d undistortPixel(const CameraIntrinsics& K, double x, double y,
                                       int iterations = 10) {
-  const Eigen::Vector2d d((x - K.cx) / K.fx, (y - K.cy) / K.fy);
+  Eigen::Vector2d d((x - K.cx) / K.fx, (y - K.cy) / K.fy);  // not const: returned by move
   if (!K.hasDistortion()) return d;
   Eigen::Vector2d p = d;
   for (int i = 0; i < iterations; ++i) {

@@ -18,11 +18,10 @@ struct ImageView {
   std::ptrdiff_t stride = 0;  ///< elements between the starts of two rows (>= width)
 
   constexpr ImageView() = default;
-  constexpr ImageView(T* data_, int width_, int height_, std::ptrdiff_t stride_)
-      : data(data_), width(width_), height(height_), stride(stride_) {}
+  constexpr ImageView(T* pixels, int w, int h, std::ptrdiff_t row_stride)
+      : data(pixels), width(w), height(h), stride(row_stride) {}
   /// A view of a densely packed buffer (stride == width).
-  constexpr ImageView(T* data_, int width_, int height_)
-      : data(data_), width(width_), height(height_), stride(width_) {}
+  constexpr ImageView(T* pixels, int w, int h) : data(pixels), width(w), height(h), stride(w) {}
 
   /// Implicit conversion to a read-only view.
   template <typename U = T, typename = std::enable_if_t<!std::is_const_v<U>>>

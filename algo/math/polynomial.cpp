@@ -64,7 +64,7 @@ int solveQuarticReal(const double c[5], double roots[4]) {
   int count = 0;
   if (degree == 4) {
     Eigen::EigenSolver<Eigen::Matrix4d> es(m, false);
-    const auto ev = es.eigenvalues();
+    const auto& ev = es.eigenvalues();
     for (int i = 0; i < 4; ++i) {
       if (std::abs(ev[i].imag()) <= 1e-6 * std::max(1.0, std::abs(ev[i].real())))
         roots[count++] = ev[i].real();
@@ -72,7 +72,7 @@ int solveQuarticReal(const double c[5], double roots[4]) {
   } else {
     Eigen::Matrix3d m3 = m.topLeftCorner<3, 3>();
     Eigen::EigenSolver<Eigen::Matrix3d> es(m3, false);
-    const auto ev = es.eigenvalues();
+    const auto& ev = es.eigenvalues();
     for (int i = 0; i < 3; ++i) {
       if (std::abs(ev[i].imag()) <= 1e-6 * std::max(1.0, std::abs(ev[i].real())))
         roots[count++] = ev[i].real();

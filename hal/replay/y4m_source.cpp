@@ -122,15 +122,16 @@ bool parseY4mHeader(const std::string& line, Y4mHeader& header, std::string& err
   }
   const std::string suffix = header.chroma.substr(std::strlen(layout->prefix));
   header.bit_depth = 8;
-  if (suffix.empty()) {
-    header.bit_depth = 8;
-  } else if (suffix[0] == 'p' && std::strcmp(layout->prefix, "mono") != 0 &&
-             parsePositiveInt(suffix.substr(1), header.bit_depth)) {
-  } else if (std::strcmp(layout->prefix, "mono") == 0 &&
-             parsePositiveInt(suffix, header.bit_depth)) {
-  } else if (std::strcmp(layout->prefix, "420") == 0 &&
-             (suffix == "jpeg" || suffix == "paldv" || suffix == "mpeg2")) {
-  } else {
+  // The suffix is empty (8 bits), "pN" (N bits), a bare N after "mono", or a 4:2:0 siting name;
+  // parsing a depth sets header.bit_depth.
+  const bool mono = std::strcmp(layout->prefix, "mono") == 0;
+  const bool known_suffix =
+      suffix.empty() ||
+      (suffix[0] == 'p' && !mono && parsePositiveInt(suffix.substr(1), header.bit_depth)) ||
+      (mono && parsePositiveInt(suffix, header.bit_depth)) ||
+      (std::strcmp(layout->prefix, "420") == 0 &&
+       (suffix == "jpeg" || suffix == "paldv" || suffix == "mpeg2"));
+  if (!known_suffix) {
     error = "unsupported Y4M colour space 'C" + header.chroma + "'";
     return false;
   }

@@ -119,4 +119,3 @@ TEST_CASE("Augmentation on a rendered clip: one wall, no floor in view (planar)"
   CHECK(jsonNumber(summary, "visible_frames") == 90);
   CHECK(jsonNumber(summary, "upright_cosine_median") >= 0.99);
 }
-

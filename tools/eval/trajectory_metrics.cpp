@@ -46,7 +46,7 @@ bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
   var_s /= static_cast<double>(n);
   if (!(var_s > 1e-300)) return false;
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d d = svd.singularValues();
+  const Eigen::Vector3d& d = svd.singularValues();
   if (!(d(1) > 1e-12 * std::max(1.0, d(0))))
     return false;  // collinear: rotation about the line is free
   Eigen::Matrix3d S = Eigen::Matrix3d::Identity();

@@ -50,8 +50,8 @@ std::string JsonWriter::number(double v) {
 }
 
 void JsonWriter::beforeValue() {
-  if (afterKey_) {
-    afterKey_ = false;
+  if (after_key_) {
+    after_key_ = false;
     return;
   }
   if (depth_ > 0) {
@@ -84,7 +84,7 @@ void JsonWriter::key(const std::string& name) {
   beforeValue();
   out_ += quote(name);
   out_ += ": ";
-  afterKey_ = true;
+  after_key_ = true;
 }
 
 void JsonWriter::value(double v) {

@@ -42,8 +42,8 @@ class JsonWriter {
 
   std::string out_;
   int depth_ = 0;
-  bool first_ = true;      // no element yet at this level
-  bool afterKey_ = false;  // a key was just written
+  bool first_ = true;       // no element yet at this level
+  bool after_key_ = false;  // a key was just written
 };
 
 }  // namespace epitrack::io

@@ -16,19 +16,19 @@ ProgressReporter::ProgressReporter(Mode mode, std::FILE* stream) : mode_(mode), 
 }
 
 void ProgressReporter::begin(const std::string& stage, long total) {
-  if (barOpen_) end();
+  if (bar_open_) end();
   stage_ = stage;
   total_ = total;
   done_ = 0;
-  lastStep_ = -1;
-  lastPrinted_ = -1;
+  last_step_ = -1;
+  last_printed_ = -1;
   if (mode_ == Mode::kBar) {
     drawBar(0);
   } else if (mode_ == Mode::kLines) {
     if (total_ > 0) {
       std::fprintf(stream_, "%s: 0/%ld\n", stage_.c_str(), total_);
-      lastStep_ = 0;
-      lastPrinted_ = 0;
+      last_step_ = 0;
+      last_printed_ = 0;
     } else {
       std::fprintf(stream_, "%s: started\n", stage_.c_str());
     }
@@ -42,9 +42,9 @@ void ProgressReporter::update(long done) {
     drawBar(done_);
   } else if (mode_ == Mode::kLines && total_ > 0) {
     const int step = static_cast<int>(done_ * 100 / total_) / kLineStepPercent;
-    if (step > lastStep_) {
-      lastStep_ = step;
-      lastPrinted_ = done_;
+    if (step > last_step_) {
+      last_step_ = step;
+      last_printed_ = done_;
       std::fprintf(stream_, "%s: %ld/%ld\n", stage_.c_str(), done_, total_);
       std::fflush(stream_);
     }
@@ -53,27 +53,27 @@ void ProgressReporter::update(long done) {
 
 void ProgressReporter::end() {
   if (mode_ == Mode::kBar) {
-    if (!barOpen_) drawBar(done_);
+    if (!bar_open_) drawBar(done_);
     std::fputc('\n', stream_);
     std::fflush(stream_);
-    barOpen_ = false;
+    bar_open_ = false;
   } else if (mode_ == Mode::kLines) {
     if (total_ <= 0) {
       std::fprintf(stream_, "%s: done\n", stage_.c_str());
-    } else if (lastPrinted_ != done_) {  // the final state is always shown once
+    } else if (last_printed_ != done_) {  // the final state is always shown once
       std::fprintf(stream_, "%s: %ld/%ld\n", stage_.c_str(), done_, total_);
     }
     std::fflush(stream_);
   }
-  lastStep_ = -1;
+  last_step_ = -1;
 }
 
 void ProgressReporter::message(const std::string& text) {
   if (mode_ == Mode::kQuiet) return;
-  if (barOpen_) {
+  if (bar_open_) {
     std::fputc('\n', stream_);
-    barOpen_ = false;
-    lastStep_ = -1;  // redraw the bar on the next update
+    bar_open_ = false;
+    last_step_ = -1;  // redraw the bar on the next update
   }
   std::fprintf(stream_, "%s\n", text.c_str());
   std::fflush(stream_);
@@ -81,9 +81,9 @@ void ProgressReporter::message(const std::string& text) {
 
 void ProgressReporter::drawBar(long done) {
   const int percent = total_ > 0 ? static_cast<int>(done * 100 / total_) : 0;
-  if (barOpen_ && percent == lastStep_) return;  // redraw only when the percentage changes
-  lastStep_ = percent;
-  barOpen_ = true;
+  if (bar_open_ && percent == last_step_) return;  // redraw only when the percentage changes
+  last_step_ = percent;
+  bar_open_ = true;
   char bar[kBarWidth + 1];
   const int filled = total_ > 0 ? static_cast<int>(done * kBarWidth / total_) : 0;
   for (int i = 0; i < kBarWidth; ++i) bar[i] = i < filled ? '#' : '.';

@@ -39,9 +39,9 @@ class ProgressReporter {
   std::string stage_;
   long total_ = 0;
   long done_ = 0;
-  int lastStep_ = -1;      // last printed 5 % step (lines) or percent (bar)
-  long lastPrinted_ = -1;  // done count of the last printed line (lines mode)
-  bool barOpen_ = false;
+  int last_step_ = -1;      // last printed 5 % step (lines) or percent (bar)
+  long last_printed_ = -1;  // done count of the last printed line (lines mode)
+  bool bar_open_ = false;
 };
 
 }  // namespace epitrack::io

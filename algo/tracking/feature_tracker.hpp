@@ -106,6 +106,10 @@ struct FeatureTrackerOptions {
   /// of where the track came from (0: no check, no refresh).
   double forward_backward_px = 0.75;
   bool forward_backward = false;  ///< check every track, not only young and drifted ones
+  /// The backward alignment starts on the finest pyramid level where the forward alignment's
+  /// correction (how far the track landed from its prediction, which is how far the mirrored
+  /// start is from the answer) is at most this many of the level's pixels (0: the coarsest).
+  double forward_backward_start_px = 2.0;
   KalmanCvOptions kalman{};
   /// The epipolar check (docs/tracker.md "Epipolar check"): tracks that stay off the rigid
   /// two-view relation (F, or H for a rotation or a plane) over a window of frames are dropped.
@@ -247,7 +251,6 @@ class FeatureTracker {
     PatchShape shape;
     LkStatus status = LkStatus::kNoConvergence;
     bool gate_ok = true;  // inside the Kalman gate (judged before the per-track decisions)
-    bool probed = false;  // aligned down to the base level this frame as a motion anchor
   };
   struct Track {
     int32_t id = 0;

@@ -443,7 +443,15 @@ int FeatureTracker::probeAnchors(int per_cell, int skip_first_per_cell) {
     if (n >= per_cell) continue;
     ++n;
     ++probed;
-    if (n <= skip_first_per_cell) continue;
+    if (n <= skip_first_per_cell) {
+      // Probed in the first round: its correspondence again, in slot order like the others, so
+      // that a frame decided on all the anchors fits exactly what one round would have fitted.
+      if (first_round_slot_[first_round_next_] == static_cast<int>(s)) {
+        const FirstRoundProbe& f = first_round_[first_round_next_++];
+        motion_estimator_.add(f.px, f.py, f.qx, f.qy);
+      }
+      continue;
+    }
     double px = static_cast<double>(t.x), py = static_cast<double>(t.y);
     anchorPrediction(t, px, py);
     float qx = static_cast<float>(px), qy = static_cast<float>(py);
@@ -461,7 +469,12 @@ int FeatureTracker::probeAnchors(int per_cell, int skip_first_per_cell) {
       shape = t.shape;
       status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
     }
-    if (status == LkStatus::kTracked) motion_estimator_.add(px, py, qx, qy);
+    if (status != LkStatus::kTracked) continue;
+    motion_estimator_.add(px, py, qx, qy);
+    if (skip_first_per_cell == 0 && first_round_count_ < kMotionGrid * kMotionGrid) {
+      first_round_slot_[first_round_count_] = static_cast<int>(s);
+      first_round_[first_round_count_++] = FirstRoundProbe{px, py, qx, qy};
+    }
   }
   return probed;
 }
@@ -487,8 +500,9 @@ void FeatureTracker::estimateGlobalMotion() {
   // corner by motion_quiet_px or more, the tracks' own velocities predict the frame (smooth
   // motion): that is the model, and the other anchors are not probed. Anything else (a jerk,
   // parallax, a split vote) probes the rest and decides on all of them, as below.
-  const int quick = std::min(per_cell, std::max(options_.motion_quick_per_cell, 0));
+  const int quick = std::min({per_cell, std::max(options_.motion_quick_per_cell, 0), 1});
   if (quick > 0 && quick < per_cell) {
+    first_round_count_ = 0;
     probeAnchors(quick, 0);
     SimilarityMotion quick_fit;
     if (motion_estimator_.estimate(quick_fit) == GlobalMotionEstimator::Status::kOk &&
@@ -500,6 +514,9 @@ void FeatureTracker::estimateGlobalMotion() {
       motion_ = quick_fit;
       return;
     }
+    first_round_slot_[first_round_count_] = -1;  // the end of the list
+    first_round_next_ = 0;
+    motion_estimator_.clear();
     probeAnchors(per_cell, quick);
   } else {
     probeAnchors(per_cell, 0);

@@ -106,6 +106,13 @@ struct FeatureTrackerOptions {
   /// of where the track came from (0: no check, no refresh).
   double forward_backward_px = 0.75;
   bool forward_backward = false;  ///< check every track, not only young and drifted ones
+  /// The backward alignment starts on the finest pyramid level where the forward alignment's
+  /// correction (how far the track landed from its prediction, which is how far the mirrored
+  /// start is from the answer) is at most this many of the level's pixels (0, the default: the
+  /// coarsest). 2 px saves about 500 LK iterations per frame on the KITTI highway excerpt (of
+  /// 8 800) and 50 on the orbit, but moves the real templeRing 12-30 self-calibrated focal 1.8 %
+  /// off (its solve flips with small changes of the tracks; docs/tracker.md).
+  double forward_backward_start_px = 0.0;
   KalmanCvOptions kalman{};
   /// The epipolar check (docs/tracker.md "Epipolar check"): tracks that stay off the rigid
   /// two-view relation (F, or H for a rotation or a plane) over a window of frames are dropped.
@@ -135,7 +142,7 @@ struct FeatureTrackerOptions {
   /// 48); when those agree (motion_clear_majority) on a motion that moves no image corner by
   /// motion_quiet_px or more, the tracks' own velocities predict the frame and that fit is the
   /// model; otherwise (a jerk, parallax, a split vote) the other anchors are probed too and the
-  /// model is decided on all of them. 0 (or as many as motion_anchors fill): one round.
+  /// model is decided on all of them (the same fit as one round). 0: one round; 1 at most.
   int motion_quick_per_cell = 1;
   double motion_quiet_px = 1.0;
   GlobalMotionOptions motion{};
@@ -252,7 +259,6 @@ class FeatureTracker {
     PatchShape shape;
     LkStatus status = LkStatus::kNoConvergence;
     bool gate_ok = true;  // inside the Kalman gate (judged before the per-track decisions)
-    bool probed = false;  // aligned down to the base level this frame as a motion anchor
   };
   struct Track {
     int32_t id = 0;
@@ -285,6 +291,14 @@ class FeatureTracker {
   /// The largest displacement of an image corner under `m`, px.
   [[nodiscard]] double cornerShift(const SimilarityMotion& m) const;
   static constexpr int kMotionGrid = 4;  // anchors are spread over a kMotionGrid^2 grid
+  struct FirstRoundProbe {  // an anchor's prediction and where the first round found it
+    double px, py, qx, qy;
+  };
+  // The first round's probes (quick <= 1 per cell) in slot order, the slot list ended by -1.
+  FirstRoundProbe first_round_[kMotionGrid * kMotionGrid] = {};
+  int first_round_slot_[kMotionGrid * kMotionGrid + 1] = {};
+  int first_round_count_ = 0;
+  int first_round_next_ = 0;
   /// Where anchor `t` is expected before the global motion is known: its own constant-velocity
   /// prediction (with the Kalman filter), else the last frame's global motion.
   void anchorPrediction(const Track& t, double& px, double& py) const;

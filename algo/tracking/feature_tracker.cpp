@@ -500,8 +500,9 @@ void FeatureTracker::estimateGlobalMotion() {
   const int per_cell = (options_.motion_anchors + kCells - 1) / kCells;
   // A first round of one anchor per cell. When it agrees clearly on a motion that moves no image
   // corner by motion_quiet_px or more, the tracks' own velocities predict the frame (smooth
-  // motion): that is the model, and the other anchors are not probed. Anything else (a jerk,
-  // parallax, a split vote) probes the rest and decides on all of them, as below.
+  // motion): the model is the identity (a fit from 16 anchors moved the orbit's p95 over 1 px), and
+  // the other anchors are not probed. Anything else (a jerk, parallax, a split vote) probes the
+  // rest and decides on all of them, as below.
   const int quick = std::min({per_cell, std::max(options_.motion_quick_per_cell, 0), 1});
   if (quick > 0 && quick < per_cell) {
     first_round_count_ = 0;
@@ -513,7 +514,7 @@ void FeatureTracker::estimateGlobalMotion() {
         cornerShift(quick_fit) < options_.motion_quiet_px) {
       stats_.motion_anchors = motion_estimator_.size();
       stats_.motion_inliers = motion_estimator_.inlierCount();
-      motion_ = quick_fit;
+      motion_ = SimilarityMotion{};
       return;
     }
     first_round_slot_[first_round_count_] = -1;  // the end of the list

@@ -140,9 +140,9 @@ struct FeatureTrackerOptions {
   double motion_min_shift_px = 5.0;
   /// The anchors are probed in two rounds: first motion_quick_per_cell per grid cell (16 of the
   /// 48); when those agree (motion_clear_majority) on a motion that moves no image corner by
-  /// motion_quiet_px or more, the tracks' own velocities predict the frame and that fit is the
-  /// model; otherwise (a jerk, parallax, a split vote) the other anchors are probed too and the
-  /// model is decided on all of them (the same fit as one round). 0: one round; 1 at most.
+  /// motion_quiet_px or more, the tracks' own velocities predict the frame and the model is
+  /// the identity; otherwise (a jerk, parallax, a split vote) the other anchors are probed too and
+  /// the model is decided on all of them (the same fit as one round). 0: one round; 1 at most.
   int motion_quick_per_cell = 1;
   double motion_quiet_px = 1.0;
   GlobalMotionOptions motion{};

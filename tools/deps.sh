@@ -9,6 +9,7 @@
 #   tools/deps.sh browser     chromium (report rendering check)
 #   tools/deps.sh colmap      COLMAP (the reference solves of tools/figures/colmap_reference.sh)
 #   tools/deps.sh clients     Blender and COLMAP (the exports loaded by the real programs, tests/export)
+#   tools/deps.sh vm          qemu-system-aarch64 and busybox-static:arm64 (tools/vm/vm.sh)
 set -euo pipefail
 
 want=()
@@ -25,6 +26,7 @@ for group in "${@:-base}"; do
     browser) want+=(chromium) ;;
     colmap) want+=(colmap) ;;
     clients) want+=(blender colmap) ;;
+    vm) add_arch=arm64; want+=(qemu-system-arm busybox-static:arm64 python3) ;;
     *) echo "deps.sh: unknown group '$group'" >&2; exit 2 ;;
   esac
 done

@@ -34,7 +34,7 @@ t_start=$SECONDS
 die() { echo "vm.sh: $*" >&2; exit 2; }
 
 # ---- host tools ----
-"$root/tools/deps.sh" cross-aarch64 >/dev/null
+"$root/tools/deps.sh" cross-aarch64 vm >/dev/null
 command -v qemu-system-aarch64 >/dev/null ||
   die "qemu-system-aarch64 is missing: apt-get install qemu-system-arm"
 for tool in apt-get apt-cache dpkg python3 gzip timeout aarch64-linux-gnu-gcc aarch64-linux-gnu-readelf; do

@@ -583,8 +583,9 @@ BundleAdjustmentSummary BundleAdjuster::solve(std::span<BaCamera> cameras,
                                               std::span<const BaObservation> observations,
                                               BaIntrinsics& k,
                                               const BundleAdjustmentOptions& options) {
-  motions_ = {};
-  return solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
+  // The global shutter: the rolling-shutter solve with no readout and no motions.
+  return solve(cameras, camera_fixed, points, points_fixed, observations, k, options,
+               RollingShutter{}, {});
 }
 
 BundleAdjustmentSummary BundleAdjuster::solve(

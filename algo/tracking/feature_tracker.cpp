@@ -313,12 +313,7 @@ void FeatureTracker::decideOne(std::size_t s, bool young, double residual_scale,
                                ImageView<const uint8_t> mask) {
   Track& t = tracks_[s];
   const Candidate& c = t.candidate;
-  auto drop = [&](int& counter, TrackLoss reason) {
-    ++counter;
-    t.live = false;
-    --live_count_;
-    lost_[static_cast<std::size_t>(lost_count_++)] = LostTrack{t.id, t.x, t.y, t.age, reason};
-  };
+  auto drop = [&](int& counter, TrackLoss reason) { dropTrack(t, counter, reason); };
   if (c.status != LkStatus::kTracked) {
     ++stats_.lost_lk;
     switch (c.status) {
@@ -566,6 +561,13 @@ void FeatureTracker::predictAll() {
   }
 }
 
+void FeatureTracker::dropTrack(Track& t, int& counter, TrackLoss reason) {
+  ++counter;
+  t.live = false;
+  --live_count_;
+  lost_[static_cast<std::size_t>(lost_count_++)] = LostTrack{t.id, t.x, t.y, t.age, reason};
+}
+
 void FeatureTracker::publishTracks() {
   output_count_ = 0;
   for (const Track& t : tracks_) {
@@ -594,11 +596,7 @@ void FeatureTracker::keepRepeatedFrame() {
       continue;
     }
     ++stats_.lost_lk;
-    ++stats_.lost_low_texture;
-    t.live = false;
-    --live_count_;
-    lost_[static_cast<std::size_t>(lost_count_++)] =
-        LostTrack{t.id, t.x, t.y, t.age, TrackLoss::kLowTexture};
+    dropTrack(t, stats_.lost_low_texture, TrackLoss::kLowTexture);
   }
   publishTracks();
   ++frame_index_;

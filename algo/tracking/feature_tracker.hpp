@@ -277,6 +277,8 @@ class FeatureTracker {
   void epipolarCheck();
   /// Aligns track `slot` into this frame (its candidate); `young`: seen in one frame only.
   void alignOne(std::size_t slot, bool young);
+  /// Ends track `t`: counted in `counter`, recorded in lost_ with `reason`.
+  void dropTrack(Track& t, int& counter, TrackLoss reason);
   /// The live tracks into the output array (what `features()` returns).
   void publishTracks();
   /// A frame equal to the previous one: tracks kept, filters untouched (see the .cpp).

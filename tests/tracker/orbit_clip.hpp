@@ -1,6 +1,6 @@
 #pragma once
 
-// A rendered synthetic clip with its ground truth, shared by the tracker tests of one binary
+// A rendered synthetic clip with its ground truth, shared by the TEST_CASEs of one process
 // (rendering the 340-frame 704x576 orbit takes seconds; it is done once, on first use), and the
 // accuracy measures of a tracker run against the true landmark projections.
 

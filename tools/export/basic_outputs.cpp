@@ -68,11 +68,22 @@ std::string formatCamerasTum(const Reconstruction& rec) {
   // reader of the file sees it; a global-shutter solve's file is unchanged.
   std::string comment = "epitrack-solve camera track (frames without a solution are omitted)";
   if (rec.readout_frames > 0.0) {
-    comment += "; rolling shutter: each pose is row ";
-    comment += shortNumber(rec.readout_reference_row);
-    comment += "'s (the middle row), the motions over the readout in rolling_shutter.txt";
+    comment += "; ";
+    comment += rollingShutterNote(rec);
   }
   return hal::formatTrajectory(entries, comment);
+}
+
+std::string rollingShutterNote(const Reconstruction& rec) {
+  if (!(rec.readout_frames > 0.0)) return {};
+  std::string note = "rolling shutter: every pose is the middle row's (row ";
+  note += shortNumber(rec.readout_reference_row);
+  note += ") of a ";
+  note += shortNumber(rec.readout_ms);
+  note += " ms readout (";
+  note += shortNumber(rec.readout_frames);
+  note += " frame intervals); each frame's motion over the readout is in rolling_shutter.txt";
+  return note;
 }
 
 std::string formatRollingShutter(const Reconstruction& rec) {
@@ -114,9 +125,12 @@ std::vector<uint8_t> formatPointsPly(const Reconstruction& rec) {
   std::size_t count = 0;
   for (const ScenePoint& p : rec.points) count += p.X.allFinite() ? 1 : 0;
   const std::string header =
-      "ply\nformat binary_little_endian 1.0\ncomment epitrack-solve scene points (scene frame)\n"
-      "element vertex " +
-      std::to_string(count) +
+      "ply\nformat binary_little_endian 1.0\ncomment epitrack-solve scene points (scene frame)\n" +
+      (rec.readout_frames > 0.0
+           ? "comment rolling shutter: solved with every image row at its own pose "
+             "(rolling_shutter.txt)\n"
+           : std::string()) +
+      "element vertex " + std::to_string(count) +
       "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
       "property uchar green\nproperty uchar blue\nend_header\n";
   std::vector<uint8_t> out(header.begin(), header.end());

@@ -17,6 +17,10 @@ namespace epitrack::io {
 /// them); unsolved frames omitted.
 std::string formatCamerasTum(const Reconstruction& rec);
 
+/// The sentence every export with room for a comment carries for a rolling-shutter solve (its
+/// poses are the middle row's, the readout, where the motions are); "" for a global shutter.
+std::string rollingShutterNote(const Reconstruction& rec);
+
 /// rolling_shutter.txt (written when Reconstruction::readout_frames > 0): the readout line and
 /// each solved frame's motion over its readout, `t wx wy wz vx vy vz` (docs/formats.md).
 std::string formatRollingShutter(const Reconstruction& rec);

@@ -175,7 +175,29 @@ void OverlayRenderer::drawLinesAtPose(const LineSet& lines, const Eigen::Isometr
     // would otherwise cover most of the frame and the rasterizer would test every sample in it.
     // Screen position and 1/z are both linear along the projected segment, so pieces are exact.
     const int pieces = std::max(1, static_cast<int>(std::ceil(len / 16.0)));
-    for (int k = 0; k < pieces; ++k) {
+    // Only the pieces that can reach the image and the rows being drawn: a line clipped at the
+    // near plane projects millions of pixels long, and the rolling shutter draws it once per
+    // row. A piece left out lies wholly more than its half width + 3 px outside them, where
+    // rasterizeTriangle would draw nothing, so the result is the same.
+    double s_lo = 0.0;
+    double s_hi = 1.0;
+    const double margin = 0.5 * lines.width_px + 3.0;
+    const auto keep = [&](double from, double delta, double lo, double hi) {
+      if (std::abs(delta) < 1e-12) {
+        if (from < lo || from > hi) s_hi = -1.0;
+        return;
+      }
+      const double s0 = (lo - from) / delta;
+      const double s1 = (hi - from) / delta;
+      s_lo = std::max(s_lo, std::min(s0, s1));
+      s_hi = std::min(s_hi, std::max(s0, s1));
+    };
+    keep(a.x, b.x - a.x, -margin, width_ - 1 + margin);
+    keep(a.y, b.y - a.y, row_begin_ - margin, row_end_ + margin);
+    if (s_hi < s_lo) continue;
+    const int k_begin = std::max(0, static_cast<int>(std::floor(s_lo * pieces)) - 1);
+    const int k_end = std::min(pieces, static_cast<int>(std::ceil(s_hi * pieces)) + 1);
+    for (int k = k_begin; k < k_end; ++k) {
       const double s0 = static_cast<double>(k) / pieces;
       const double s1 = static_cast<double>(k + 1) / pieces;
       const ScreenVertex p0{a.x + s0 * (b.x - a.x), a.y + s0 * (b.y - a.y),

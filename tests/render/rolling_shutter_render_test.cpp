@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -14,6 +16,7 @@
 
 #include "algo/geometry/rolling_shutter.hpp"
 #include "algo/image/image.hpp"
+#include "tests/support/test_support.hpp"
 #include "tools/render/overlay_renderer.hpp"
 #include "tools/synth/synthetic_sequence.hpp"
 
@@ -206,4 +209,61 @@ TEST_CASE("A rolling-shutter render with readout 0 or no motion is the global re
   OverlayRenderer moving(K);  // and the test can fail: the same motion with a readout differs
   moving.setRollingShutter(RollingShutter::fromReadout(0.9, 240, 119.5), motion);
   CHECK(draw(moving) != reference);
+}
+
+TEST_CASE("epitrack-solve --readout-ms writes the motions the augmented frames are drawn with",
+          "[render][rolling-shutter][slow][no-asan]") {
+  namespace et = epitrack::test;
+  et::TempDir dir("rs-solve");
+  const std::string clip = dir.file("clip");
+  REQUIRE(et::run(et::binaryPath("tools/synth/epitrack-synth") +
+                  " --scene orbit --orbit-speed 0.75 --target-wander 1 --frames 30 --size 320x240 "
+                  "--focal 280 --rolling-shutter 30ms --out " +
+                  clip + " 2>/dev/null") == 0);
+  const std::string solve = et::binaryPath("tools/solve/epitrack-solve") + " " + clip +
+                            "/frames --intrinsics " + clip +
+                            "/intrinsics.txt --quiet --render cube";
+  REQUIRE(et::run(solve + " --readout-ms 30 --out " + dir.file("rs")) == 0);
+  REQUIRE(et::run(solve + " --out " + dir.file("gs")) == 0);
+  // One motion per camera of cameras.tum, same t, and the readout line.
+  std::vector<double> tum_t;
+  {
+    std::istringstream in(et::readWholeFile(dir.file("rs/cameras.tum")));
+    std::string line;
+    while (std::getline(in, line))
+      if (!line.empty() && line[0] != '#') tum_t.push_back(std::stod(line));
+  }
+  std::istringstream in(et::readWholeFile(dir.file("rs/rolling_shutter.txt")));
+  std::string line;
+  std::vector<double> motion_t;
+  double readout = 0, rows = 0, row = 0, ms = 0, fps = 0;
+  double largest_w = 0.0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream f(line);
+    if (line.rfind("readout ", 0) == 0) {
+      std::string word;
+      f >> word >> readout >> rows >> row >> ms >> fps;
+      continue;
+    }
+    double t = 0;
+    Eigen::Vector3d w, v;
+    f >> t >> w.x() >> w.y() >> w.z() >> v.x() >> v.y() >> v.z();
+    REQUIRE_FALSE(f.fail());
+    REQUIRE(w.allFinite());
+    REQUIRE(v.allFinite());
+    largest_w = std::max(largest_w, w.norm());
+    motion_t.push_back(t);
+  }
+  CHECK(readout == Approx(0.9));
+  CHECK(rows == 240);
+  CHECK(row == 119.5);
+  CHECK(ms == 30.0);
+  CHECK(fps == 30.0);
+  CHECK(motion_t == tum_t);
+  CHECK(tum_t.size() == 30);
+  CHECK(largest_w > 0.0);
+  CHECK(et::readWholeFile(dir.file("rs/summary.json")).find("\"rolling_shutter.txt\"") !=
+        std::string::npos);
+  CHECK(et::run("test -e '" + dir.file("gs/rolling_shutter.txt") + "'") != 0);
 }

@@ -96,6 +96,7 @@ bool writeSummaryJson(const Reconstruction& rec, const std::string& dir, std::st
 
 /// Writes cameras.tum, intrinsics.txt, points.ply, summary.json, colmap/{cameras,images,
 /// points3D}.txt, blender_camera.py, camera.chan and camera.nk into `dir` (created if missing),
+/// rolling_shutter.txt too when the solve has a readout (Reconstruction::readout_frames > 0),
 /// then summary.json with `rec.files` plus these names as its "files". Returns false with a message
 /// naming the file on the first failure.
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir, std::string& error);

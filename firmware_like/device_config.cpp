@@ -145,6 +145,10 @@ const std::map<std::string, Key>& keyTable() {
                             [](C& c) -> bool& { return c.realtime; });
     t["fps"] = realKey("nominal rate of image directories", 0.1, 100000.0,
                        [](C& c) -> double& { return c.fps; });
+    t["readout_ms"] = realKey(
+        "rolling shutter: the sensor's readout time, first row to last, in ms (0: global shutter); "
+        "used in the live map's resection and windowed adjustment",
+        0.0, 1000.0, [](C& c) -> double& { return c.readout_ms; });
     t["focal"] = realKey("focal in pixels when no intrinsics are given (0: self-calibrate it)", 0.0,
                          1e6, [](C& c) -> double& { return c.focal; });
     t["warmup_frames"] = intKey("frames left out of the timing statistics", 0, 1000000,

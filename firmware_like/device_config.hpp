@@ -19,7 +19,10 @@ struct DeviceConfig {
   bool realtime = false;        ///< pace replay at the nominal rate and drop late frames
   double fps = 30.0;            ///< nominal rate of sources without one (image directories)
   double focal = 0.0;           ///< focal without intrinsics (0: self-calibrated)
-  int warmup_frames = 10;       ///< frames left out of the timing statistics
+  /// Rolling shutter: the sensor's readout, first row to last, in ms (0: global shutter); with
+  /// the source's frame rate it becomes map.readout_frames (docs/device.md).
+  double readout_ms = 0.0;
+  int warmup_frames = 10;  ///< frames left out of the timing statistics
   /// The whole-window residual and refresh set (lk_occlusion_aware = false): the live map was
   /// tuned and measured with it; with the tracker's occlusion-aware default the live KITTI
   /// highway excerpt tracks 24 frames instead of 33.

@@ -453,6 +453,18 @@ int main(int argc, char** argv) {
   if (const int code = readConfiguration(argc, argv, config); code >= 0) return code;
   DeviceIo io;
   if (!openInputs(config, io)) return 2;
+  if (config.readout_ms > 0.0) {
+    // The readout in frame intervals, at the source's rate: what the live map's model counts in.
+    const double rate = io.source->info().fps > 0.0 ? io.source->info().fps : config.fps;
+    config.map.readout_frames = config.readout_ms * rate / 1000.0;
+    if (config.map.readout_frames > 1.0) {
+      std::fprintf(stderr,
+                   "epitrack-device: readout_ms %.3g is longer than a frame interval at %.3g fps "
+                   "(a sensor reads out within its frame time)\n",
+                   config.readout_ms, rate);
+      return 2;
+    }
+  }
   epitrack::LiveTracker tracker(config.tracker, config.map, io.intrinsics);
   if (!openPoseOutput(config, io)) return 2;
   const auto& info = io.source->info();

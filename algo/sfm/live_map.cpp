@@ -59,7 +59,8 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
       fundamental_(std::max(8, options.max_features)),
       pnp_(std::max(4, options.max_features)),
       ba_(options.ba_window + options.ba_fixed, options.max_points,
-          (options.ba_window + options.ba_fixed) * options.max_features),
+          (options.ba_window + options.ba_fixed) * options.max_features,
+          options.readout_frames > 0.0),
       homography_(std::max(8, options.max_features)),
       essential_(std::max(8, options.max_features)) {
   EPITRACK_ASSERT(options.max_features > 0 && options.max_points > 0);
@@ -81,6 +82,13 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
   n1_.resize(nf);
   n2_.resize(nf);
   X_.resize(nf);
+  if (options.readout_frames > 0.0) {
+    shutter_ = RollingShutter::fromReadout(options.readout_frames, intrinsics.height,
+                                           0.5 * (intrinsics.height - 1));
+    rs_X_.resize(nf);
+    rs_px_.resize(nf);
+    ba_motions_.resize(static_cast<std::size_t>(options.ba_window + options.ba_fixed));
+  }
   record_of_match_.resize(nf);
   accepted_.resize(nf);
   scratch_.resize(nf);
@@ -129,6 +137,7 @@ std::size_t LiveMap::reservedBytes() const {
 
 void LiveMap::reset() {
   if (state_ != State::kCalibrating) state_ = State::kInitializing;
+  motion_ = RollingShutterMotion{};
   ref_frame_ = -1;
   for (int i = 0; i < record_count_; ++i) {
     auto& r = records_[static_cast<std::size_t>(i)];
@@ -528,6 +537,7 @@ bool LiveMap::trackFrame(LiveFrameResult& result) {
     }
   }
   if (options_.outlier_sigmas > 0.0) robustRefine(nm, pr);
+  if (shutter_.line_delay > 0.0) refineRollingShutter(nm, pr);
   result.pose = pr.pose;
   result.inliers = pr.inliers;
   ++frames_since_kf_;
@@ -582,6 +592,31 @@ void LiveMap::robustRefine(std::size_t matches, PnpResult& pr) {
              std::span<const uint8_t>(robust_mask_.data(), matches), ro, pr.pose);
 }
 
+void LiveMap::refineRollingShutter(std::size_t matches, PnpResult& pr) {
+  // The middle-row pose and the motion over the readout, on the PnP inliers in pixels (each
+  // point is seen on its own row); the Huber weights take care of the few bad ones.
+  std::size_t n = 0;
+  for (std::size_t j = 0; j < matches; ++j) {
+    if (!pr.mask[j]) continue;
+    rs_X_[n] = X_[j];
+    rs_px_[n] = records_[static_cast<std::size_t>(record_of_match_[j])].px;
+    ++n;
+  }
+  if (static_cast<int>(n) < options_.min_pnp_inliers) return;
+  PoseCw pose = pr.pose;
+  RollingShutterMotion motion = motion_;  // the last frame's: the motion changes slowly
+  RollingShutterResectionOptions ro;
+  ro.huber_px = options_.huber_px;
+  const auto r = refineRollingShutterPose(
+      K_, shutter_, std::span<const Eigen::Vector3d>(rs_X_.data(), n),
+      std::span<const Eigen::Vector2d>(rs_px_.data(), n), pose, motion, ro);
+  if (!(r.rms_px <= options_.reproj_threshold_px) || !pose.R_cw.allFinite() ||
+      !pose.t_cw.allFinite() || !motion.angular.allFinite() || !motion.linear.allFinite())
+    return;
+  pr.pose = pose;
+  motion_ = motion;
+}
+
 bool LiveMap::needKeyframe(const PoseCw& pose, int inliers) {
   const Keyframe* last = keyframe(kf_next_seq_ - 1);
   if (last == nullptr) return true;
@@ -615,6 +650,7 @@ int64_t LiveMap::addKeyframe(const PoseCw& pose, int inliers) {
   kf.seq = seq;
   kf.frame = frame_;
   kf.pose = pose;
+  kf.motion = motion_;
   kf.obs_count = 0;
   kf.inliers = inliers;
   frames_since_kf_ = 0;
@@ -785,11 +821,16 @@ void LiveMap::adjustWindow() {
     bo.huber_px = huber;
     bo.max_iterations = options_.ba_iterations;
     BaIntrinsics kk = k;
+    // With a rolling shutter the keyframes' motions join the adjustment (an empty span: the
+    // global-shutter adjustment, bit for bit).
+    const std::size_t n_motions = shutter_.line_delay > 0.0 ? static_cast<std::size_t>(n_cams) : 0;
+    for (std::size_t c = 0; c < n_motions; ++c) ba_motions_[c] = keyframe(ba_kf_seq_[c])->motion;
     const auto summary = ba_.solve(
         std::span<BaCamera>(ba_cameras_.data(), static_cast<std::size_t>(n_cams)),
         std::span<const uint8_t>(ba_fixed_.data(), static_cast<std::size_t>(n_cams)),
         std::span<Eigen::Vector3d>(ba_points_.data(), static_cast<std::size_t>(n_pts)), {},
-        std::span<const BaObservation>(ba_obs_.data(), static_cast<std::size_t>(n_obs)), kk, bo);
+        std::span<const BaObservation>(ba_obs_.data(), static_cast<std::size_t>(n_obs)), kk, bo,
+        shutter_, std::span<RollingShutterMotion>(ba_motions_.data(), n_motions));
     const bool ok = summary.status == BundleAdjustmentSummary::Status::kConverged ||
                     summary.status == BundleAdjustmentSummary::Status::kMaxIterations;
     if (ok && n_cams - n_free == 1) restoreScale(n_cams, n_pts);
@@ -798,6 +839,11 @@ void LiveMap::adjustWindow() {
         const auto& cam = ba_cameras_[static_cast<std::size_t>(c)];
         if (cam.R_cw.allFinite() && cam.t_cw.allFinite())
           keyframe(ba_kf_seq_[static_cast<std::size_t>(c)])->pose = fromBa(cam);
+        if (static_cast<std::size_t>(c) < n_motions) {
+          const auto& m = ba_motions_[static_cast<std::size_t>(c)];
+          if (m.angular.allFinite() && m.linear.allFinite())
+            keyframe(ba_kf_seq_[static_cast<std::size_t>(c)])->motion = m;
+        }
       }
       for (int s = 0; s < n_pts; ++s) {
         const auto& X = ba_points_[static_cast<std::size_t>(s)];

@@ -15,6 +15,7 @@
 #include "algo/geometry/homography.hpp"
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/pose.hpp"
+#include "algo/geometry/rolling_shutter.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
 #include "algo/tracking/feature_tracker.hpp"
 
@@ -57,6 +58,12 @@ struct LiveMapOptions {
   double huber_sigmas = 2.0;
   double min_outlier_px = 0.1;
   uint64_t seed = 1;
+  /// Rolling shutter (issue 27): the sensor's readout from the first row to the last, in frame
+  /// intervals (0: global shutter). Each tracked frame's pose is then its middle row's, refined
+  /// with the camera's motion over the readout after the PnP (refineRollingShutterPose), and the
+  /// windowed adjustment refines the keyframes' motions with their poses (BundleAdjuster::solve
+  /// with motions). Everything is sized at construction: no allocation per frame either way.
+  double readout_frames = 0.0;
   // Focal self-calibration (paper §5.2) before the map, when the intrinsics are not given: the
   // camera is taken as a centred pinhole (fx = fy = f, principal point at the image centre) and f
   // is estimated from the fundamental matrices of frame pairs over the first seconds.
@@ -181,6 +188,7 @@ class LiveMap {
     int64_t seq = -1;
     int64_t frame = 0;
     PoseCw pose;
+    RollingShutterMotion motion;  ///< over the readout (zero for a global shutter)
     int obs_count = 0;
     int inliers = 0;
   };
@@ -197,6 +205,8 @@ class LiveMap {
   bool tryInitialize(LiveFrameResult& result);
   bool trackFrame(LiveFrameResult& result);
   void robustRefine(std::size_t matches, PnpResult& pr);
+  /// Rolling shutter: the frame's middle-row pose and motion_ refined on the PnP inliers.
+  void refineRollingShutter(std::size_t matches, PnpResult& pr);
   bool needKeyframe(const PoseCw& pose, int inliers);
   int64_t addKeyframe(const PoseCw& pose, int inliers);
   void addObservation(int64_t kf_seq, int point, const Eigen::Vector2d& px);
@@ -247,6 +257,13 @@ class LiveMap {
   std::vector<int> ba_point_index_;    // pool index of each adjusted point
   std::vector<int> ba_slot_of_point_;  // max_points, -1 when not in the adjustment
   std::vector<BaObservation> ba_obs_;
+  // Rolling shutter (options_.readout_frames > 0): the frame's motion over the readout (the last
+  // tracked frame's, the start of the next refinement) and the compacted inliers it is refined on.
+  RollingShutter shutter_;
+  RollingShutterMotion motion_;
+  std::vector<Eigen::Vector3d> rs_X_;             // max_features
+  std::vector<Eigen::Vector2d> rs_px_;            // max_features
+  std::vector<RollingShutterMotion> ba_motions_;  // ba_window + ba_fixed
   // Self-calibration: a ring of reference frames (tracks sorted by id) and of F matrices.
   struct CalibReference {
     int64_t frame = -1;

@@ -11,7 +11,8 @@
 // The device loop (FeatureTracker + LiveMap, exactly what epitrack-device runs per frame) makes no
 // heap allocation from the first frame on: 500 replayed frames of a rendered orbit, including the
 // initialisation, keyframes with triangulation and windowed bundle adjustment, a tracking loss
-// (blank frames) and the re-initialisation after it.
+// (blank frames) and the re-initialisation after it; with self-calibration; with a rolling-shutter
+// readout.
 
 using epitrack::Image;
 using epitrack::test::AllocationScope;
@@ -111,4 +112,28 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
   CHECK_FALSE(selfcal.map().focalFallback());
   CHECK(sc_tracking > 100);
   CHECK(sc_allocations == 0);
+
+  // With a rolling-shutter readout (epitrack-device readout_ms): each tracked frame's pose and
+  // motion refined after the PnP, the keyframes' motions in the windowed adjustment, the loss and
+  // the restart; still no allocation.
+  mo.self_calibrate = false;
+  mo.readout_frames = 0.9;
+  epitrack::LiveTracker rolling(to, mo, K);
+  std::size_t rs_allocations = 0;
+  int rs_tracking = 0, rs_lost = 0, rs_keyframes = 0;
+  for (int i = 0; i < 350; ++i) {
+    AllocationScope scope;
+    REQUIRE(rolling.process(frames[static_cast<std::size_t>(i)].constView(), out) ==
+            epitrack::LiveTracker::Status::kOk);
+    rs_allocations += scope.count();
+    rs_tracking += out.map.status == epitrack::LiveStatus::kTracking ? 1 : 0;
+    rs_lost += out.map.status == epitrack::LiveStatus::kLost ? 1 : 0;
+    rs_keyframes += out.map.keyframe ? 1 : 0;
+  }
+  std::printf("device alloc, rolling shutter: %d tracking, %d lost, %d keyframes\n", rs_tracking,
+              rs_lost, rs_keyframes);
+  CHECK(rs_tracking > 250);
+  CHECK(rs_lost >= 1);
+  CHECK(rs_keyframes >= 10);
+  CHECK(rs_allocations == 0);
 }

@@ -341,3 +341,81 @@ TEST_CASE("blender_camera.py builds the scene without a plate Blender cannot rea
       et::readWholeFile(dir.file("blender.log")).find("epitrack: no plate, Blender cannot read") !=
       std::string::npos);
 }
+
+TEST_CASE("blender_camera.py carries a rolling-shutter solve's readout and motions",
+          "[export][blender][slow][no-asan]") {
+  if (et::run("command -v blender > /dev/null 2>&1") != 0) {
+    std::printf(
+        "EPITRACK-SKIP: blender not installed (tools/deps.sh clients), Blender itself not run\n");
+    return;
+  }
+  Reconstruction rec = et::makeReconstruction(6, 0);
+  rec.readout_frames = 0.9;
+  rec.readout_ms = 30.0;
+  rec.fps = 30.0;
+  rec.readout_reference_row = 0.5 * (rec.intrinsics.height - 1);
+  for (std::size_t i = 0; i < rec.cameras.size(); ++i) {
+    const double s = 0.01 * static_cast<double>(i + 1);
+    rec.cameras[i].rs_angular = Eigen::Vector3d(s, -2.0 * s, 0.5 * s);
+    rec.cameras[i].rs_linear = Eigen::Vector3d(-s, 0.3 * s, 3.0 * s);
+  }
+  et::TempDir dir("blender-rs");
+  std::string error;
+  REQUIRE(writeAllOutputs(rec, dir.file("out"), error));
+  const std::string probe = dir.file("probe.txt");
+  // Blender's own values of the custom properties: the constants, and the keyed F-curves
+  // evaluated at every frame of the scene.
+  {
+    std::ofstream script(dir.file("rs_probe.py"));
+    script << R"PY(import sys
+import bpy
+out = open(sys.argv[sys.argv.index("--") + 1], "w")
+scene = bpy.context.scene
+camera = bpy.data.objects["epitrack_camera"]
+out.write("readout %r %r %r\n" % (camera["epitrack_readout_frames"], camera["epitrack_readout_ms"],
+                                  camera["epitrack_reference_row"]))
+curves = {(c.data_path, c.array_index): c for c in camera.animation_data.action.fcurves}
+for frame in range(scene.frame_start, scene.frame_end + 1):
+    w = [curves[('["epitrack_rs_angular"]', i)].evaluate(frame) for i in range(3)]
+    v = [curves[('["epitrack_rs_linear"]', i)].evaluate(frame) for i in range(3)]
+    out.write("motion %d %r %r %r %r %r %r\n" % (frame, w[0], w[1], w[2], v[0], v[1], v[2]))
+out.close()
+)PY";
+  }
+  REQUIRE(et::run("cd '" + dir.file("out") +
+                  "' && blender -b --factory-startup --python-exit-code 1 --python "
+                  "blender_camera.py --python '" +
+                  dir.file("rs_probe.py") + "' -- '" + probe + "' > '" + dir.file("blender.log") +
+                  "' 2>&1") == 0);
+  std::ifstream in(probe);
+  std::string line;
+  int motions = 0;
+  double worst = 0.0;
+  bool have_readout = false;
+  while (std::getline(in, line)) {
+    std::istringstream f(line);
+    std::string what;
+    f >> what;
+    if (what == "readout") {
+      double frames = 0, ms = 0, row = 0;
+      f >> frames >> ms >> row;
+      have_readout = true;
+      CHECK(frames == 0.9);
+      CHECK(ms == 30.0);
+      CHECK(row == rec.readout_reference_row);
+    } else if (what == "motion") {
+      int frame = 0;
+      Eigen::Vector3d w, v;
+      f >> frame >> w.x() >> w.y() >> w.z() >> v.x() >> v.y() >> v.z();
+      const auto& cam = rec.cameras[static_cast<std::size_t>(frame - 1)];  // Blender frame 1 = 0
+      worst = std::max({worst, (w - cam.rs_angular).cwiseAbs().maxCoeff(),
+                        (v - cam.rs_linear).cwiseAbs().maxCoeff()});
+      ++motions;
+    }
+  }
+  std::printf("Blender rolling-shutter properties: %d frames, worst motion difference %.2e\n",
+              motions, worst);
+  CHECK(have_readout);
+  CHECK(motions == 6);
+  CHECK(worst < 1e-6);
+}

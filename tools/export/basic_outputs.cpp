@@ -1,7 +1,8 @@
-// cameras.tum, intrinsics.txt, points.ply and summary.json.
+// cameras.tum, rolling_shutter.txt, intrinsics.txt, points.ply and summary.json.
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -43,6 +44,13 @@ double mean(const std::vector<double>& values) {
   return sum / static_cast<double>(values.size());
 }
 
+// "%.12g": enough digits for a pose's motion, short for the row numbers.
+std::string shortNumber(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.12g", v);
+  return buf;
+}
+
 }  // namespace
 
 std::string formatCamerasTum(const Reconstruction& rec) {
@@ -56,9 +64,56 @@ std::string formatCamerasTum(const Reconstruction& rec) {
     e.rotation = Eigen::Quaterniond(c.R_wc).normalized();
     entries.push_back(e);
   }
-  return hal::formatTrajectory(entries,
-                               "epitrack-solve camera track (frames without a solution "
-                               "are omitted)");
+  // With a rolling shutter the poses are the middle row's (docs/rolling-shutter.md): said where a
+  // reader of the file sees it; a global-shutter solve's file is unchanged.
+  std::string comment = "epitrack-solve camera track (frames without a solution are omitted)";
+  if (rec.readout_frames > 0.0) {
+    comment += "; ";
+    comment += rollingShutterNote(rec);
+  }
+  return hal::formatTrajectory(entries, comment);
+}
+
+std::string rollingShutterNote(const Reconstruction& rec) {
+  if (!(rec.readout_frames > 0.0)) return {};
+  std::string note = "rolling shutter: every pose is the middle row's (row ";
+  note += shortNumber(rec.readout_reference_row);
+  note += ") of a ";
+  note += shortNumber(rec.readout_ms);
+  note += " ms readout (";
+  note += shortNumber(rec.readout_frames);
+  note += " frame intervals); each frame's motion over the readout is in rolling_shutter.txt";
+  return note;
+}
+
+std::string formatRollingShutter(const Reconstruction& rec) {
+  std::string out =
+      "# epitrack-solve rolling shutter: each solved frame's camera motion over its readout\n"
+      "# (docs/formats.md). 'readout R ROWS REF MS FPS': row y is exposed tau(y) = R (y - REF) /\n"
+      "# (ROWS - 1) frame intervals after the frame's pose in cameras.tum (row REF's), R the "
+      "readout\n"
+      "# in frame intervals (MS milliseconds at FPS frames per second). Then 't wx wy wz vx vy "
+      "vz'\n"
+      "# per solved frame (t as in cameras.tum): row y's pose is R_wc Exp(w tau(y)), centre\n"
+      "# p_wc + v tau(y); w in the camera frame (rad per frame interval), v in the scene frame\n"
+      "# (scene units per frame interval).\n";
+  out += "readout";
+  for (const double v : {rec.readout_frames, static_cast<double>(rec.intrinsics.height),
+                         rec.readout_reference_row, rec.readout_ms, rec.fps}) {
+    out += ' ';
+    out += shortNumber(v);
+  }
+  out += '\n';
+  for (const SolvedCamera& c : rec.cameras) {
+    if (!c.solved || !finitePose(c)) continue;
+    out += shortNumber(rec.has_timestamps ? c.timestamp : static_cast<double>(c.frame));
+    for (int i = 0; i < 6; ++i) {
+      out += ' ';
+      out += shortNumber(i < 3 ? c.rs_angular[i] : c.rs_linear[i - 3]);
+    }
+    out += '\n';
+  }
+  return out;
 }
 
 std::string formatIntrinsicsFile(const Reconstruction& rec) {
@@ -70,9 +125,12 @@ std::vector<uint8_t> formatPointsPly(const Reconstruction& rec) {
   std::size_t count = 0;
   for (const ScenePoint& p : rec.points) count += p.X.allFinite() ? 1 : 0;
   const std::string header =
-      "ply\nformat binary_little_endian 1.0\ncomment epitrack-solve scene points (scene frame)\n"
-      "element vertex " +
-      std::to_string(count) +
+      "ply\nformat binary_little_endian 1.0\ncomment epitrack-solve scene points (scene frame)\n" +
+      (rec.readout_frames > 0.0
+           ? "comment rolling shutter: solved with every image row at its own pose "
+             "(rolling_shutter.txt)\n"
+           : std::string()) +
+      "element vertex " + std::to_string(count) +
       "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
       "property uchar green\nproperty uchar blue\nend_header\n";
   std::vector<uint8_t> out(header.begin(), header.end());

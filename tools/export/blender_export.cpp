@@ -113,6 +113,18 @@ std::string formatBlenderScript(const Reconstruction& rec, const ExportOptions& 
   s += "# not applied to the Blender camera (a pinhole): it is set on the plate clip's tracking "
        "camera\n";
   s += "# (polynomial model), for a Movie Distortion node in the compositor.\n";
+  const bool rolling = rec.readout_frames > 0.0;
+  if (rolling) {
+    s += "# " + rollingShutterNote(rec) + ".\n";
+    s += "# Blender's camera has one pose per frame (the middle row's): the readout and motions "
+         "are\n";
+    s +=
+        "# custom properties of 'epitrack_camera': epitrack_readout_frames, epitrack_readout_ms,\n";
+    s += "# epitrack_reference_row, and keyed on every solved frame epitrack_rs_angular (w, rad "
+         "per\n";
+    s += "# frame interval, in epitrack's camera frame: x right, y down, z forward) and\n";
+    s += "# epitrack_rs_linear (v, scene units per frame interval, in the world).\n";
+  }
   s += "import bpy\n\n";
   s += "WIDTH = " + std::to_string(k.width) + "\n";
   s += "HEIGHT = " + std::to_string(k.height) + "\n";
@@ -148,7 +160,33 @@ std::string formatBlenderScript(const Reconstruction& rec, const ExportOptions& 
     if (p.X.allFinite()) s += "    " + tuple3(p.X) + ",\n";
   }
   s += "]\n\n";
-  s += R"PY(
+  if (rolling) {
+    s += "# (readout in frame intervals, readout in ms, reference row)\n";
+    s += "ROLLING_SHUTTER = (" + py(rec.readout_frames) + ", " + py(rec.readout_ms) + ", " +
+         py(rec.readout_reference_row) + ")\n";
+    s += "# (frame index, w, v) per solved frame: the camera's motion over the readout\n";
+    s += "RS_MOTIONS = [\n";
+    for (const SolvedCamera& c : rec.cameras) {
+      if (!c.solved || !c.R_wc.allFinite() || !c.p_wc.allFinite()) continue;
+      s += "    (" + std::to_string(c.frame) + ", " + tuple3(c.rs_angular) + ", " +
+           tuple3(c.rs_linear) + "),\n";
+    }
+    s += "]\n\n";
+    s += R"PY(
+def build_rolling_shutter(camera):
+    readout_frames, readout_ms, reference_row = ROLLING_SHUTTER
+    camera["epitrack_readout_frames"] = readout_frames
+    camera["epitrack_readout_ms"] = readout_ms
+    camera["epitrack_reference_row"] = reference_row
+    for frame, angular, linear in RS_MOTIONS:
+        camera["epitrack_rs_angular"] = angular
+        camera["epitrack_rs_linear"] = linear
+        camera.keyframe_insert(data_path='["epitrack_rs_angular"]', frame=frame + FRAME_OFFSET)
+        camera.keyframe_insert(data_path='["epitrack_rs_linear"]', frame=frame + FRAME_OFFSET)
+
+)PY";
+  }
+  std::string body = R"PY(
 def build_camera(scene):
     fx, fy = FOCAL_PX
     cx, cy = PRINCIPAL_POINT_PX
@@ -252,6 +290,11 @@ def main():
 if __name__ == "__main__":
     main()
 )PY";
+  if (rolling) {
+    const std::string call = "    camera = build_camera(scene)\n";
+    body.insert(body.find(call) + call.size(), "    build_rolling_shutter(camera)\n");
+  }
+  s += body;
   return s;
 }
 

@@ -158,6 +158,8 @@ std::string formatColmapImages(const Reconstruction& rec, const ExportOptions& o
   std::snprintf(buf, sizeof(buf), "# Number of images: %d, mean observations per image: %.6g\n",
                 images, images > 0 ? static_cast<double>(total_points) / images : 0.0);
   out += buf;
+  // COLMAP's cameras are global-shutter: a rolling-shutter solve's poses are the middle row's.
+  if (rec.readout_frames > 0.0) out += "# " + rollingShutterNote(rec) + "\n";
   for (const SolvedCamera& c : rec.cameras) {
     if (!usableCamera(c)) continue;
     // COLMAP stores the world-to-camera transform: x_c = R_cw X + t_cw.

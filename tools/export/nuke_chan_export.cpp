@@ -160,6 +160,8 @@ std::string formatNukeScript(const Reconstruction& rec, const ExportOptions& opt
        " on normalized coordinates):\n";
   s += "# use a LensDistortion node. Read 'epitrack_plate': the input frames, when they were "
        "files.\n";
+  // Nuke's camera has no rolling shutter: the keys are the middle row's poses.
+  if (rec.readout_frames > 0.0) s += "# " + rollingShutterNote(rec) + "\n";
   s += "Root {\n inputs 0\n";
   s += " first_frame " + std::to_string(first_frame) + "\n";
   s += " last_frame " + std::to_string(last_frame) + "\n";

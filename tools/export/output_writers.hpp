@@ -17,6 +17,14 @@ namespace epitrack::io {
 /// them); unsolved frames omitted.
 std::string formatCamerasTum(const Reconstruction& rec);
 
+/// The sentence every export with room for a comment carries for a rolling-shutter solve (its
+/// poses are the middle row's, the readout, where the motions are); "" for a global shutter.
+std::string rollingShutterNote(const Reconstruction& rec);
+
+/// rolling_shutter.txt (written when Reconstruction::readout_frames > 0): the readout line and
+/// each solved frame's motion over its readout, `t wx wy wz vx vy vz` (docs/formats.md).
+std::string formatRollingShutter(const Reconstruction& rec);
+
 /// intrinsics.txt through hal::formatIntrinsics.
 std::string formatIntrinsicsFile(const Reconstruction& rec);
 
@@ -88,6 +96,7 @@ bool writeSummaryJson(const Reconstruction& rec, const std::string& dir, std::st
 
 /// Writes cameras.tum, intrinsics.txt, points.ply, summary.json, colmap/{cameras,images,
 /// points3D}.txt, blender_camera.py, camera.chan and camera.nk into `dir` (created if missing),
+/// rolling_shutter.txt too when the solve has a readout (Reconstruction::readout_frames > 0),
 /// then summary.json with `rec.files` plus these names as its "files". Returns false with a message
 /// naming the file on the first failure.
 bool writeAllOutputs(const Reconstruction& rec, const std::string& dir, std::string& error);

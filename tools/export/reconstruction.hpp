@@ -36,6 +36,12 @@ struct SolvedCamera {
   int inliers = 0;        ///< observations used for this pose
   int features = 0;       ///< 2D features tracked in this frame (for the report), 0: unknown
   bool keyframe = false;  ///< used as a keyframe by the solver
+  /// Rolling shutter (Reconstruction::readout_frames > 0): the camera's motion over this frame's
+  /// readout (algo/geometry/rolling_shutter.hpp): w in the camera frame (rad per frame interval),
+  /// v of the centre in the world (scene) frame (units per frame interval). R_wc and p_wc are the
+  /// reference row's pose; row y's is R_wc Exp(w tau(y)), p_wc + v tau(y).
+  Eigen::Vector3d rs_angular = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rs_linear = Eigen::Vector3d::Zero();
 };
 
 /// One triangulated scene point (world coordinates).
@@ -134,6 +140,10 @@ struct Reconstruction {
   /// before and after it (summary.json "rolling_shutter").
   double readout_ms = 0.0;
   double readout_reference_row = 0.0;
+  /// The readout the cameras' motions (SolvedCamera::rs_angular, rs_linear) were solved with, in
+  /// frame intervals from the first row to the last; 0: global shutter, no motion (nothing
+  /// written to rolling_shutter.txt, frames rendered with one pose).
+  double readout_frames = 0.0;
   double readout_rms_before_px = 0.0;
   double readout_rms_after_px = 0.0;
   int readout_ba_iterations = 0;  ///< the joint rolling-shutter adjustment's iterations

@@ -54,6 +54,8 @@ SceneFrame applySceneFrame(Reconstruction& rec, const SceneFrameOptions& options
   for (SolvedCamera& c : rec.cameras) {
     c.p_wc = S.apply(c.p_wc);
     c.R_wc = S.R * c.R_wc;
+    // A rolling-shutter motion: w is in the camera frame (unchanged), v a world velocity.
+    c.rs_linear = S.scale * (S.R * c.rs_linear);
   }
   for (ScenePoint& p : rec.points) p.X = S.apply(p.X);
 

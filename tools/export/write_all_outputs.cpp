@@ -43,9 +43,14 @@ bool writeAllOutputs(const Reconstruction& rec, const std::string& dir,
       hal::writeTextAtomic(base + "camera.chan", formatNukeChan(rec, options), error) &&
       hal::writeTextAtomic(base + "camera.nk", formatNukeScript(rec, options), error);
   if (!written) return false;
+  std::vector<std::string> names = exportFileNames();
+  if (rec.readout_frames > 0.0) {
+    if (!hal::writeTextAtomic(base + "rolling_shutter.txt", formatRollingShutter(rec), error))
+      return false;
+    names.insert(names.begin() + 1, "rolling_shutter.txt");
+  }
   // Last, so that a complete summary means a complete output directory.
-  return hal::writeTextAtomic(base + "summary.json", formatSummaryJson(rec, exportFileNames()),
-                              error);
+  return hal::writeTextAtomic(base + "summary.json", formatSummaryJson(rec, names), error);
 }
 
 }  // namespace epitrack::io

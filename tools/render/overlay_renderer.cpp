@@ -34,7 +34,11 @@ Rgb8 shade(const Rgb8& c, double lambert) {
 }  // namespace
 
 OverlayRenderer::OverlayRenderer(const CameraIntrinsics& intrinsics, double near_plane)
-    : k_(intrinsics), near_(near_plane), width_(intrinsics.width), height_(intrinsics.height) {
+    : k_(intrinsics),
+      near_(near_plane),
+      row_end_(intrinsics.height - 1),
+      width_(intrinsics.width),
+      height_(intrinsics.height) {
   const auto px = static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_);
   depth_.assign(px * kSamples, 0.0F);
   color_.assign(px * kSamples, Rgb8{});
@@ -64,7 +68,62 @@ bool OverlayRenderer::project(const Eigen::Vector3d& p_c, ScreenVertex& out) con
   return std::isfinite(out.x) && std::isfinite(out.y);
 }
 
+void OverlayRenderer::setRollingShutter(const RollingShutter& shutter,
+                                        const RollingShutterMotion& motion) {
+  shutter_ = shutter;
+  motion_ = motion;
+}
+
+bool OverlayRenderer::rolling() const {
+  return shutter_.line_delay != 0.0 &&
+         (motion_.angular != Eigen::Vector3d::Zero() || motion_.linear != Eigen::Vector3d::Zero());
+}
+
+Eigen::Isometry3d OverlayRenderer::rowPose(const Eigen::Isometry3d& T_wc, int y) const {
+  // The row's exposure time is that of the sensor row, in the distorted image: the pinhole row y
+  // is taken at the image's vertical centre line (x = cx), where its distorted row is
+  // cy + fy yn (1 + k1 yn^2 + k2 yn^4); elsewhere along the row the distorted row differs by the
+  // distortion's bend of a horizontal line (see docs/augmentation.md, rolling shutter).
+  const double yn = (y - k_.cy) / k_.fy;
+  const double yn2 = yn * yn;
+  const double sensor_row = k_.cy + k_.fy * yn * (1.0 + k_.k1 * yn2 + k_.k2 * yn2 * yn2);
+  PoseCw pose;
+  pose.R_cw = T_wc.linear().transpose();
+  pose.t_cw = -pose.R_cw * T_wc.translation();
+  const PoseCw at = poseAtTime(pose, motion_, shutter_.rowTime(sensor_row));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = at.R_cw.transpose();
+  T.translation() = at.centre();
+  return T;
+}
+
 void OverlayRenderer::drawMesh(const Mesh& mesh, const Eigen::Isometry3d& T_wc) {
+  if (!rolling()) {
+    drawMeshAtPose(mesh, T_wc);
+    return;
+  }
+  for (int y = 0; y < height_; ++y) {
+    row_begin_ = row_end_ = y;
+    drawMeshAtPose(mesh, rowPose(T_wc, y));
+  }
+  row_begin_ = 0;
+  row_end_ = height_ - 1;
+}
+
+void OverlayRenderer::drawLines(const LineSet& lines, const Eigen::Isometry3d& T_wc) {
+  if (!rolling()) {
+    drawLinesAtPose(lines, T_wc);
+    return;
+  }
+  for (int y = 0; y < height_; ++y) {
+    row_begin_ = row_end_ = y;
+    drawLinesAtPose(lines, rowPose(T_wc, y));
+  }
+  row_begin_ = 0;
+  row_end_ = height_ - 1;
+}
+
+void OverlayRenderer::drawMeshAtPose(const Mesh& mesh, const Eigen::Isometry3d& T_wc) {
   const Eigen::Isometry3d T_cw = T_wc.inverse();
   const Eigen::Vector3d centre = T_wc.translation();
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
@@ -97,7 +156,7 @@ void OverlayRenderer::drawMesh(const Mesh& mesh, const Eigen::Isometry3d& T_wc) 
   }
 }
 
-void OverlayRenderer::drawLines(const LineSet& lines, const Eigen::Isometry3d& T_wc) {
+void OverlayRenderer::drawLinesAtPose(const LineSet& lines, const Eigen::Isometry3d& T_wc) {
   const Eigen::Isometry3d T_cw = T_wc.inverse();
   for (std::size_t i = 0; i < lines.from.size(); ++i) {
     Eigen::Vector3d p = T_cw * lines.from[i];
@@ -116,7 +175,29 @@ void OverlayRenderer::drawLines(const LineSet& lines, const Eigen::Isometry3d& T
     // would otherwise cover most of the frame and the rasterizer would test every sample in it.
     // Screen position and 1/z are both linear along the projected segment, so pieces are exact.
     const int pieces = std::max(1, static_cast<int>(std::ceil(len / 16.0)));
-    for (int k = 0; k < pieces; ++k) {
+    // Only the pieces that can reach the image and the rows being drawn: a line clipped at the
+    // near plane projects millions of pixels long, and the rolling shutter draws it once per
+    // row. A piece left out lies wholly more than its half width + 3 px outside them, where
+    // rasterizeTriangle would draw nothing, so the result is the same.
+    double s_lo = 0.0;
+    double s_hi = 1.0;
+    const double margin = 0.5 * lines.width_px + 3.0;
+    const auto keep = [&](double from, double delta, double lo, double hi) {
+      if (std::abs(delta) < 1e-12) {
+        if (from < lo || from > hi) s_hi = -1.0;
+        return;
+      }
+      const double s0 = (lo - from) / delta;
+      const double s1 = (hi - from) / delta;
+      s_lo = std::max(s_lo, std::min(s0, s1));
+      s_hi = std::min(s_hi, std::max(s0, s1));
+    };
+    keep(a.x, b.x - a.x, -margin, width_ - 1 + margin);
+    keep(a.y, b.y - a.y, row_begin_ - margin, row_end_ + margin);
+    if (s_hi < s_lo) continue;
+    const int k_begin = std::max(0, static_cast<int>(std::floor(s_lo * pieces)) - 1);
+    const int k_end = std::min(pieces, static_cast<int>(std::ceil(s_hi * pieces)) + 1);
+    for (int k = k_begin; k < k_end; ++k) {
       const double s0 = static_cast<double>(k) / pieces;
       const double s1 = static_cast<double>(k + 1) / pieces;
       const ScreenVertex p0{a.x + s0 * (b.x - a.x), a.y + s0 * (b.y - a.y),
@@ -152,8 +233,8 @@ void OverlayRenderer::rasterizeTriangle(const ScreenVertex& a0, const ScreenVert
   const double max_y = std::max({a.y, b.y, c.y});
   const int x0 = std::max(0, static_cast<int>(std::floor(min_x + 0.5)) - 1);
   const int x1 = std::min(width_ - 1, static_cast<int>(std::ceil(max_x - 0.5)) + 1);
-  const int y0 = std::max(0, static_cast<int>(std::floor(min_y + 0.5)) - 1);
-  const int y1 = std::min(height_ - 1, static_cast<int>(std::ceil(max_y - 0.5)) + 1);
+  const int y0 = std::max(row_begin_, static_cast<int>(std::floor(min_y + 0.5)) - 1);
+  const int y1 = std::min(row_end_, static_cast<int>(std::ceil(max_y - 0.5)) + 1);
   if (x0 > x1 || y0 > y1) return;
   // Edge function E_ab(p) = (b - a) x (p - a) >= 0 inside. Top-left rule: a sample exactly on an
   // edge belongs to the triangle only for top or left edges, so shared edges are drawn once.

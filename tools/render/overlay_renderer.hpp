@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/geometry/rolling_shutter.hpp"
 #include "algo/image/image.hpp"
 
 namespace epitrack::render {
@@ -51,6 +52,12 @@ class OverlayRenderer {
 
   /// Forgets everything drawn.
   void clear();
+  /// Rolling shutter (issue 27, docs/augmentation.md): from now on drawMesh and drawLines draw
+  /// every image row with the pose of its own exposure time, the pose they are given being the
+  /// reference row's (`shutter.reference_row`) and `motion` the camera's over the readout
+  /// (algo/geometry/rolling_shutter.hpp), so that the objects shear with a rolling-shutter plate.
+  /// A zero line delay or a zero motion draws with the one pose, exactly as without.
+  void setRollingShutter(const RollingShutter& shutter, const RollingShutterMotion& motion);
   /// Draws a mesh seen from the camera pose T_wc (camera to scene).
   void drawMesh(const Mesh& mesh, const Eigen::Isometry3d& T_wc);
   /// Draws line segments of constant pixel width.
@@ -70,9 +77,18 @@ class OverlayRenderer {
   void rasterizeTriangle(const ScreenVertex& a, const ScreenVertex& b, const ScreenVertex& c,
                          const Rgb8& color);
   bool project(const Eigen::Vector3d& p_c, ScreenVertex& out) const;
+  void drawMeshAtPose(const Mesh& mesh, const Eigen::Isometry3d& T_wc);
+  void drawLinesAtPose(const LineSet& lines, const Eigen::Isometry3d& T_wc);
+  /// The pose (camera to scene) row `y` of the rendered pinhole image is drawn with.
+  [[nodiscard]] Eigen::Isometry3d rowPose(const Eigen::Isometry3d& T_wc, int y) const;
+  [[nodiscard]] bool rolling() const;
 
   CameraIntrinsics k_;
   double near_;
+  RollingShutter shutter_;
+  RollingShutterMotion motion_;
+  int row_begin_ = 0;  // rows rasterized: [row_begin_, row_end_] (one row at a time when rolling)
+  int row_end_ = 0;
   int width_;
   int height_;
   std::vector<float> depth_;    // per sample: 1/z, 0 = empty

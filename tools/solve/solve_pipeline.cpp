@@ -53,7 +53,8 @@ void warnAboutObject(const io::Reconstruction& rec, io::ProgressReporter::Mode p
 std::vector<std::string> solveOutputNames() {
   std::vector<std::string> names = {"summary.json"};
   names.insert(names.end(), io::exportFileNames().begin(), io::exportFileNames().end());
-  names.insert(names.end(), {"report.html", "augmented.avi", "scene_frame.jpg"});
+  names.insert(names.end(),
+               {"rolling_shutter.txt", "report.html", "augmented.avi", "scene_frame.jpg"});
   return names;
 }
 
@@ -254,6 +255,10 @@ void collectGeometry(SolveRun& run) {
     c.inliers = fr.inliers;
     c.features = run.features_per_frame[static_cast<std::size_t>(f)];
     c.keyframe = fr.keyframe;
+    if (static_cast<std::size_t>(f) < run.motions.size()) {
+      c.rs_angular = run.motions[static_cast<std::size_t>(f)].angular;
+      c.rs_linear = run.motions[static_cast<std::size_t>(f)].linear;
+    }
     rec.cameras.push_back(c);
   }
   std::vector<char> point_valid(static_cast<std::size_t>(tracks.trackCount()), 0);
@@ -308,7 +313,7 @@ void refineReadout(SolveRun& run, const Solver& solver) {
       "rolling shutter: refining " + std::to_string(solver.solvedFrames()) + " frames" +
       (given ? " with a " + std::to_string(run.o.readout_ms).substr(0, 5) + " ms readout"
              : ", readout to be estimated"));
-  std::vector<RollingShutterMotion> motions;
+  std::vector<RollingShutterMotion>& motions = run.motions;
   RollingShutterRefinementOptions options;
   options.reproj_threshold_px = 2.0 * run.so.reproj_threshold_px;
   // The focal is refined with the readout where the solve refined it: a global-shutter solve
@@ -345,8 +350,19 @@ void refineReadout(SolveRun& run, const Solver& solver) {
     if (!keep) {
       run.solved_frames = solver.frames();
       run.solved_points = solver.points();
+      motions.clear();
     }
   }
+  // The motions are the readout's (the estimate rescales those fitted with the nominal one:
+  // the projection depends on line delay x motion only).
+  if (keep && !given && run.rec.readout_ms > 0.0) {
+    const double to_readout = kNominalReadoutFrames / (run.rec.readout_ms * fps / 1000.0);
+    for (auto& m : motions) {
+      m.angular *= to_readout;
+      m.linear *= to_readout;
+    }
+  }
+  if (keep) run.rec.readout_frames = given ? readout_frames : run.rec.readout_ms * fps / 1000.0;
   if (keep && options.refine_focal && r.ba_iterations > 0) run.readout_focal_px = K.fx;
   run.clock.lap("rolling_shutter");
 }

@@ -38,6 +38,19 @@ Eigen::Isometry3d cameraToScene(const io::SolvedCamera& cam) {
   return T;
 }
 
+// With a rolling shutter (rec.readout_frames > 0, docs/rolling-shutter.md) the renderer draws
+// every row at its own pose, from the frame's middle-row pose and its motion over the readout, so
+// that the object shears with the plate; a global-shutter solve draws with the one pose.
+void setCameraShutter(OverlayRenderer& renderer, const io::Reconstruction& rec,
+                      const io::SolvedCamera& cam) {
+  RollingShutterMotion motion;
+  motion.angular = cam.rs_angular;
+  motion.linear = cam.rs_linear;
+  renderer.setRollingShutter(RollingShutter::fromReadout(rec.readout_frames, rec.intrinsics.height,
+                                                         rec.readout_reference_row),
+                             motion);
+}
+
 // The solved frame nearest the middle of the solved ones (-1: none): the report's scene-frame
 // picture (the object is placed for the middle of the clip, see object_placement.hpp).
 int middleSolvedFrame(const io::Reconstruction& rec) {
@@ -59,6 +72,7 @@ bool writeSceneFrameImage(const io::Reconstruction& rec, int frame, const Mesh& 
   const double length = std::isfinite(rec.object.height) ? 1.3 * rec.object.height : 0.6 * scale;
   const Eigen::Isometry3d T = cameraToScene(cam);
   renderer.clear();
+  setCameraShutter(renderer, rec, cam);
   renderer.drawLines(grid, T);
   renderer.drawMesh(object, T);
   renderer.drawMesh(render::makeUpArrow(rec.object.at + 0.45 * scale * right, length), T);
@@ -114,6 +128,7 @@ class FrameDrawer {
     if (cam.solved && (!mesh_.triangles.empty() || !grid_.from.empty())) {
       const Eigen::Isometry3d T = cameraToScene(cam);
       renderer_.clear();
+      setCameraShutter(renderer_, run_.rec, cam);
       renderer_.drawLines(grid_, T);
       renderer_.drawMesh(mesh_, T);
       renderer_.composite(rgb_.view());

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/geometry/rolling_shutter.hpp"
 #include "algo/image/image.hpp"
 #include "algo/sfm/solver.hpp"
 #include "algo/sfm/track_table.hpp"
@@ -85,6 +86,9 @@ struct SolveRun {
   /// The solver's frames and points, refined for a rolling shutter with --readout-ms.
   std::vector<SolvedFrame> solved_frames;
   std::vector<MapPoint> solved_points;
+  /// Each frame's motion over the readout (indexed like solved_frames; empty without a rolling
+  /// shutter), scaled to the readout written (rec.readout_frames).
+  std::vector<RollingShutterMotion> motions;
   /// > 0: the focal the rolling-shutter adjustment refined (it replaces the solver's).
   double readout_focal_px = 0.0;
   /// rec_observation[i]: index into rec.observations of tracks.observations()[i], -1 when left out.

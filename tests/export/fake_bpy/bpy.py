@@ -76,9 +76,19 @@ class _Object:
         self.location = (0.0, 0.0, 0.0)
         self.rotation_mode = 'XYZ'
         self.rotation_quaternion = (1.0, 0.0, 0.0, 0.0)
+        self._properties = {}
+
+    def __setitem__(self, key, value):  # custom properties
+        self._properties[key] = value
+
+    def __getitem__(self, key):
+        return self._properties[key]
 
     def keyframe_insert(self, data_path, frame):
-        value = getattr(self, data_path)
+        if data_path.startswith('["'):
+            value = self._properties[data_path[2:-2]]
+        else:
+            value = getattr(self, data_path)
         _log.append((data_path, frame, tuple(float(v) for v in value)))
 
 

@@ -328,9 +328,12 @@ void refineReadout(SolveRun& run, const Solver& solver) {
     run.rec.readout_ms = run.o.readout_ms;
     run.rec.readout_source = "given";
   } else {
+    // No adjustment (no points: a rotation-only solve, or too few observations): no estimate.
     ReadoutEstimate e;
-    e.readout_frames = r.line_delay * (run.height - 1);
-    e.std_error = r.line_delay_std_error * (run.height - 1);
+    if (r.ba_iterations > 0) {
+      e.readout_frames = r.line_delay * (run.height - 1);
+      e.std_error = r.line_delay_std_error * (run.height - 1);
+    }
     e.observable = r.ba_iterations > 0 && std::isfinite(e.std_error) && e.std_error > 0.0 &&
                    e.std_error <= 0.1;  // 3.3 ms at 30 fps
     for (const auto& f : run.solved_frames) e.frames += f.solved ? 1 : 0;

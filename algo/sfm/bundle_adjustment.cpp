@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 namespace epitrack {
 namespace {
 
@@ -68,7 +70,9 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   point_obs_offset_.resize(np + 1);
   point_obs_index_.resize(no);
   point_obs_cursor_.resize(np);
-  const std::size_t pairs = rolling_shutter ? 2 * no : no;
+  // With a rolling shutter an observation has two entries (its pose and its motion slot), with
+  // the smooth trajectory up to three (its camera and the neighbours).
+  const std::size_t pairs = rolling_shutter ? 3 * no : no;
   pair_obs_.resize(pairs);
   pair_slot_.resize(pairs);
   pair_begin_.resize(np);
@@ -86,6 +90,8 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   if (rolling_shutter) {
     Wv_.resize(no);
     motions_backup_.resize(nc);
+    motion_D_.resize(nc);
+    obs_entry_.resize(no);
   }
   const Eigen::Index n = (rolling_shutter ? 12 : 6) * static_cast<Eigen::Index>(nc) + 3;
   S_.resize(n, n);
@@ -154,18 +160,30 @@ bool BundleAdjuster::projectRollingShutter(const BaCamera& c, const RollingShutt
                                            double& tau) {
   tau = 0.0;
   if (!project(c, k, X, uv)) return false;
-  // y <- pi_y(x_c(tau(y))) from the reference row's projection; contracts by line delay x row
-  // speed (a few %), so 3-6 steps (algo/geometry/rolling_shutter.hpp).
+  // The row y where g(y) = pi_y(x_c(tau(y))) - y = 0, from the reference row's projection. The
+  // plain iteration y <- pi_y contracts by line delay x row speed (a few %: 6-8 steps to 1e-9 px,
+  // algo/geometry/rolling_shutter.hpp); g is nearly linear in y, so secant steps on g reach the
+  // same tolerance in 3-4 projections.
+  double y = uv.y();
+  double y_prev = 0.0, g_prev = 0.0;
   for (int step = 0; step < kMaxRowSteps; ++step) {
-    tau = shutter.rowTime(uv.y());
+    tau = shutter.rowTime(y);
     Eigen::Vector2d next;
     if (!project(cameraAtTime(c, m, tau), k, X, next)) return false;
-    const double moved = std::fabs(next.y() - uv.y());
+    const double g = next.y() - y;
     uv = next;
-    if (moved < kRowTolerancePx) {
+    if (std::fabs(g) < kRowTolerancePx) {
       tau = shutter.rowTime(uv.y());
       return uv.allFinite();
     }
+    double y_next = next.y();
+    if (step > 0 && g != g_prev) {
+      const double secant = y - g * (y - y_prev) / (g - g_prev);
+      if (std::isfinite(secant)) y_next = secant;
+    }
+    y_prev = y;
+    g_prev = g;
+    y = y_next;
   }
   return false;
 }
@@ -174,7 +192,8 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
     const BaCamera& c, const RollingShutterMotion& m, const RollingShutter& shutter,
     const BaIntrinsics& k, const Eigen::Vector3d& X, Eigen::Vector2d& uv,
     Eigen::Matrix<double, 2, 6>& J_cam, Eigen::Matrix<double, 2, 6>& J_motion,
-    Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr) {
+    Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr,
+    Eigen::Vector2d* J_line_delay) {
   double tau = 0.0;
   if (!projectRollingShutter(c, m, shutter, k, X, uv, tau)) return false;
   // At the row's camera the global-shutter Jacobians give d uv / d x_c (G: the translation
@@ -210,7 +229,84 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
   J_motion = M * J_motion;
   J_point = M * J_point;
   J_intr = M * J_intr;
+  // The line delay moves the row's time at a held row by (y - reference_row).
+  if (J_line_delay != nullptr) *J_line_delay = M * u_tau * (uv.y() - shutter.reference_row);
   return true;
+}
+
+namespace {
+
+Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// The inverse of the right Jacobian of SO(3): Log(Exp(phi) Exp(d)) = phi + Jr^-1(phi) d to first
+// order; the left one is Jr^-1(-phi).
+Eigen::Matrix3d rightJacobianInverseSo3(const Eigen::Vector3d& phi) {
+  const double theta2 = phi.squaredNorm();
+  const Eigen::Matrix3d P = skew(phi);
+  if (theta2 < 1e-10) return Eigen::Matrix3d::Identity() + 0.5 * P + (1.0 / 12.0) * (P * P);
+  const double theta = std::sqrt(theta2);
+  const double c = 1.0 / theta2 - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+  return Eigen::Matrix3d::Identity() + 0.5 * P + c * (P * P);
+}
+
+Eigen::Vector3d centreOf(const BaCamera& c) { return -c.R_cw.transpose() * c.t_cw; }
+
+// d centre / d (dtheta, dt) for x_c = Exp(dtheta) R X + t + dt: c = -R^T t moves by
+// -R^T [t]x dtheta - R^T dt.
+Eigen::Matrix<double, 3, 6> centreJacobian(const BaCamera& c) {
+  Eigen::Matrix<double, 3, 6> J;
+  J.leftCols<3>() = -c.R_cw.transpose() * skew(c.t_cw);
+  J.rightCols<3>() = -c.R_cw.transpose();
+  return J;
+}
+
+}  // namespace
+
+RollingShutterMotion BundleAdjuster::trajectoryMotion(std::span<const BaCamera> cameras,
+                                                      const BaTrajectoryNeighbours& nb, int c,
+                                                      Eigen::Matrix<double, 6, 18>* D) {
+  RollingShutterMotion m;
+  if (D != nullptr) D->setZero();
+  const BaCamera& cc = cameras[static_cast<std::size_t>(c)];
+  const bool has_prev = nb.previous >= 0, has_next = nb.next >= 0;
+  if (!has_prev && !has_next) return m;
+  // R_cw(f + d) = Exp(-w d) R_cw(f), c(f + d) = c(f) + v d (rolling_shutter.hpp); each side's
+  // difference weighted 1/2 when both exist.
+  const double half = has_prev && has_next ? 0.5 : 1.0;
+  if (has_prev) {
+    const BaCamera& cp = cameras[static_cast<std::size_t>(nb.previous)];
+    const Eigen::Vector3d phi = logSo3(cp.R_cw * cc.R_cw.transpose());  // = w
+    m.angular += half * phi;
+    m.linear += half * (centreOf(cc) - centreOf(cp));
+    if (D != nullptr) {
+      // Log(Exp(dp) X Exp(-dc)) = phi + Jl^-1 dp - Jr^-1 dc.
+      D->block<3, 3>(0, 0) += half * rightJacobianInverseSo3(-phi);
+      D->block<3, 3>(0, 6) -= half * rightJacobianInverseSo3(phi);
+      D->block<3, 6>(3, 6) += half * centreJacobian(cc);
+      D->block<3, 6>(3, 0) -= half * centreJacobian(cp);
+    }
+  }
+  if (has_next) {
+    const BaCamera& cn = cameras[static_cast<std::size_t>(nb.next)];
+    const Eigen::Vector3d phi = logSo3(cn.R_cw * cc.R_cw.transpose());  // = -w
+    m.angular -= half * phi;
+    m.linear += half * (centreOf(cn) - centreOf(cc));
+    if (D != nullptr) {
+      D->block<3, 3>(0, 12) -= half * rightJacobianInverseSo3(-phi);
+      D->block<3, 3>(0, 6) += half * rightJacobianInverseSo3(phi);
+      D->block<3, 6>(3, 12) += half * centreJacobian(cn);
+      D->block<3, 6>(3, 6) -= half * centreJacobian(cc);
+    }
+  }
+  return m;
+}
+
+void BundleAdjuster::updateTrajectoryMotions(std::span<const BaCamera> cameras) {
+  for (std::size_t c = 0; c < cameras.size(); ++c)
+    motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), nullptr);
 }
 
 Eigen::Matrix<double, 6, 1> BundleAdjuster::motionPriorResidual(std::size_t c) const {
@@ -298,7 +394,8 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
   const int nc = L.nc, no = L.no;
   // Reduced-system layout: 6 per free camera (12 with the rolling shutter's motion), then the
   // intrinsics.
-  L.rs = !motions_.empty();
+  L.traj = !neighbours_.empty();
+  L.rs = !motions_.empty() && !L.traj;
   const int width = L.rs ? 12 : 6;
   int n_free = 0;
   for (int c = 0; c < nc; ++c)
@@ -312,6 +409,11 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
     int j = 0;
     if (options.refine_focal) L.kcol[j++] = 0;
     for (int d = 0; d < options.refine_distortion; ++d) L.kcol[j++] = 1 + d;
+    if (L.traj && options.refine_readout) {
+      L.kcol[j++] = 3;
+      ++L.nk;
+      ++L.n;
+    }
   }
   // Observations grouped by point (CSR).
   std::fill(point_obs_offset_.begin(), point_obs_offset_.begin() + np + 1, 0);
@@ -325,6 +427,56 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
   for (int i = 0; i < no; ++i) {
     const auto p = static_cast<std::size_t>(observations[static_cast<std::size_t>(i)].point);
     point_obs_index_[static_cast<std::size_t>(point_obs_cursor_[p]++)] = i;
+  }
+  if (L.traj) {
+    // Each point's entries: the distinct free slots its observations touch (their cameras and
+    // those cameras' neighbours), sorted; each observation's three entries (-1: none or fixed).
+    for (int p = 0; p < np; ++p) {
+      const int begin = 3 * point_obs_offset_[static_cast<std::size_t>(p)];
+      pair_begin_[static_cast<std::size_t>(p)] = begin;
+      int end = begin;
+      for (int a = point_obs_offset_[static_cast<std::size_t>(p)];
+           a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
+        const int i = point_obs_index_[static_cast<std::size_t>(a)];
+        const int cam = observations[static_cast<std::size_t>(i)].camera;
+        const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(cam)];
+        const int touched[3] = {nb.previous, cam, nb.next};
+        for (int j = 0; j < 3; ++j) {
+          int& entry = obs_entry_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
+          entry = -1;
+          if (touched[j] < 0) continue;
+          const int slot = camera_slot_[static_cast<std::size_t>(touched[j])];
+          if (slot < 0) continue;
+          int e = begin;
+          while (e < end && pair_slot_[static_cast<std::size_t>(e)] < slot) ++e;
+          if (e == end || pair_slot_[static_cast<std::size_t>(e)] != slot) {
+            for (int q = end; q > e; --q)
+              pair_slot_[static_cast<std::size_t>(q)] = pair_slot_[static_cast<std::size_t>(q - 1)];
+            pair_slot_[static_cast<std::size_t>(e)] = slot;
+            ++end;
+          }
+        }
+      }
+      pair_end_[static_cast<std::size_t>(p)] = end;
+      // The entries are final: each observation's by search.
+      for (int a = point_obs_offset_[static_cast<std::size_t>(p)];
+           a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
+        const int i = point_obs_index_[static_cast<std::size_t>(a)];
+        const int cam = observations[static_cast<std::size_t>(i)].camera;
+        const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(cam)];
+        const int touched[3] = {nb.previous, cam, nb.next};
+        for (int j = 0; j < 3; ++j) {
+          int& entry = obs_entry_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
+          entry = -1;
+          if (touched[j] < 0) continue;
+          const int slot = camera_slot_[static_cast<std::size_t>(touched[j])];
+          if (slot < 0) continue;
+          for (int e = begin; e < end; ++e)
+            if (pair_slot_[static_cast<std::size_t>(e)] == slot) entry = e;
+        }
+      }
+    }
+    return L;
   }
   // Each point's observations by free cameras, sorted by slot (insertion sort: a few dozen each);
   // with the rolling shutter, a second entry at the camera's motion slot.
@@ -411,7 +563,7 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
     if (nk > 0) {
       H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
       g.segment(k0, nk) += w * Jk.leftCols(nk).transpose() * r;
-      Wk_[static_cast<std::size_t>(i)] = w * Jk.transpose() * Jp;
+      Wk_[static_cast<std::size_t>(i)].topRows<3>() = w * Jk.transpose() * Jp;
     }
     V_[pi] += w * Jp.transpose() * Jp;
     gp_[pi] += w * Jp.transpose() * r;
@@ -444,6 +596,83 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
   }
 }
 
+void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
+                                         std::span<const Eigen::Vector3d> points,
+                                         std::span<const BaObservation> observations,
+                                         const BaIntrinsics& k,
+                                         const BundleAdjustmentOptions& options, const Layout& L) {
+  const int n = L.n, np = L.np, no = L.no, nk = L.nk, k0 = L.k0;
+  Eigen::MatrixXd& H = S_;
+  H.topLeftCorner(n, n).setZero();
+  Eigen::VectorXd& g = rhs_;
+  g.head(n).setZero();
+  for (int p = 0; p < np; ++p) {
+    V_[static_cast<std::size_t>(p)].setZero();
+    gp_[static_cast<std::size_t>(p)].setZero();
+    for (int e = pair_begin_[static_cast<std::size_t>(p)];
+         e < pair_end_[static_cast<std::size_t>(p)]; ++e)
+      pair_Wc_[static_cast<std::size_t>(e)].setZero();
+  }
+  for (std::size_t c = 0; c < cameras.size(); ++c)
+    motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), &motion_D_[c]);
+  for (int i = 0; i < no; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    const BaObservation& o = observations[ii];
+    const auto pi = static_cast<std::size_t>(o.point);
+    const auto ci = static_cast<std::size_t>(o.camera);
+    Eigen::Vector2d uv;
+    Eigen::Matrix<double, 2, 6> Jc;
+    Eigen::Matrix<double, 2, 6> Jm;
+    Eigen::Matrix<double, 2, 3> Jp;
+    Eigen::Matrix<double, 2, 3> Jk_intr;
+    Eigen::Vector2d Jl;
+    Wk_[ii].setZero();
+    if (!projectRollingShutterWithJacobians(cameras[ci], motions_[ci], shutter_, k, points[pi], uv,
+                                            Jc, Jm, Jp, Jk_intr, &Jl))
+      continue;
+    const Eigen::Vector2d r = uv - o.xy;
+    const double w = huberWeight(r.norm(), options.huber_px);
+    Eigen::Matrix<double, 2, 4> Jk = Eigen::Matrix<double, 2, 4>::Zero();
+    for (int j = 0; j < nk; ++j) Jk.col(j) = L.kcol[j] == 3 ? Jl : Jk_intr.col(L.kcol[j]);
+    // The motion is the trajectory's: its Jacobian goes to the previous, own and next pose.
+    Eigen::Matrix<double, 2, 6> J[3];
+    const Eigen::Matrix<double, 2, 18> JmD = Jm * motion_D_[ci];
+    J[0] = JmD.middleCols<6>(0);
+    J[1] = Jc + JmD.middleCols<6>(6);
+    J[2] = JmD.middleCols<6>(12);
+    const BaTrajectoryNeighbours& nb = neighbours_[ci];
+    const int touched[3] = {nb.previous, o.camera, nb.next};
+    int slot[3];
+    for (int a = 0; a < 3; ++a)
+      slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+    for (int a = 0; a < 3; ++a) {
+      const int sa = slot[a];
+      if (sa < 0) continue;
+      g.segment<6>(sa) += w * J[a].transpose() * r;
+      pair_Wc_[static_cast<std::size_t>(obs_entry_[ii][static_cast<std::size_t>(a)])] +=
+          w * J[a].transpose() * Jp;
+      if (nk > 0) H.block(sa, k0, 6, nk) += w * J[a].transpose() * Jk.leftCols(nk);
+      for (int b = 0; b < 3; ++b) {  // the upper triangle's blocks
+        const int sb = slot[b];
+        if (sb < sa) continue;
+        H.block<6, 6>(sa, sb) += w * J[a].transpose() * J[b];
+      }
+    }
+    if (nk > 0) {
+      H.block(k0, k0, nk, nk) += w * Jk.leftCols(nk).transpose() * Jk.leftCols(nk);
+      g.segment(k0, nk) += w * Jk.leftCols(nk).transpose() * r;
+      Wk_[ii] = w * Jk.transpose() * Jp;
+    }
+    V_[pi] += w * Jp.transpose() * Jp;
+    gp_[pi] += w * Jp.transpose() * r;
+  }
+  if (nk > 0) {
+    for (int c = 0; c < k0; ++c)
+      for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
+  }
+  for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+}
+
 bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed,
                                         const Layout& L) {
   const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
@@ -463,7 +692,7 @@ bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> 
     for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
     const Eigen::Matrix3d Vinv = Vd.inverse();
     Vinv_[pp] = Vinv;
-    Eigen::Matrix3d Wk_sum = Eigen::Matrix3d::Zero();
+    Eigen::Matrix<double, 4, 3> Wk_sum = Eigen::Matrix<double, 4, 3>::Zero();
     for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
       Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
     const int begin = pair_begin_[pp];
@@ -517,6 +746,20 @@ double BundleAdjuster::backSubstitute(std::span<const BaObservation> observation
       continue;
     }
     Eigen::Vector3d rhs = -gp_[pp];
+    if (L.traj) {  // the merged entries, then the intrinsics per observation
+      for (int e = pair_begin_[pp]; e < pair_end_[pp]; ++e)
+        rhs -= pair_Wc_[static_cast<std::size_t>(e)].transpose() *
+               dc.segment<6>(pair_slot_[static_cast<std::size_t>(e)]);
+      if (nk > 0)
+        for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
+          rhs -= Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])]
+                     .topRows(nk)
+                     .transpose() *
+                 dc.segment(k0, nk);
+      dp_[pp] = Vinv_[pp] * rhs;
+      step2 += dp_[pp].squaredNorm();
+      continue;
+    }
     for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a) {
       const int ia = point_obs_index_[static_cast<std::size_t>(a)];
       const int sa =
@@ -544,6 +787,7 @@ void BundleAdjuster::applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
   for (int p = 0; p < np; ++p)
     points_backup_[static_cast<std::size_t>(p)] = points[static_cast<std::size_t>(p)];
   k_backup_ = k;
+  line_delay_backup_ = shutter_.line_delay;
   if (L.rs)
     for (int c = 0; c < nc; ++c)
       motions_backup_[static_cast<std::size_t>(c)] = motions_[static_cast<std::size_t>(c)];
@@ -567,12 +811,19 @@ void BundleAdjuster::applyStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
     if (kcol[j] == 0) k.f += v;
     if (kcol[j] == 1) k.k1 += v;
     if (kcol[j] == 2) k.k2 += v;
+    if (kcol[j] == 3) shutter_.line_delay += v;
   }
+  if (L.traj) updateTrajectoryMotions(cameras);
 }
 
 void BundleAdjuster::undoStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points) {
   for (std::size_t c = 0; c < cameras.size(); ++c) cameras[c] = cameras_backup_[c];
   for (std::size_t p = 0; p < points.size(); ++p) points[p] = points_backup_[p];
+  if (!neighbours_.empty()) {
+    shutter_.line_delay = line_delay_backup_;
+    updateTrajectoryMotions(cameras);
+    return;
+  }
   for (std::size_t c = 0; c < motions_.size(); ++c) motions_[c] = motions_backup_[c];
 }
 
@@ -601,6 +852,7 @@ BundleAdjustmentSummary BundleAdjuster::solve(
     for (const RollingShutterMotion& m : motions)
       if (!m.angular.allFinite() || !m.linear.allFinite()) return {};
     motions_ = motions;
+    neighbours_ = {};
     shutter_ = shutter;
     velocity_prior_ = options.velocity_prior;
     motion_prior_mean_ = options.motion_prior_mean;
@@ -609,6 +861,32 @@ BundleAdjustmentSummary BundleAdjuster::solve(
   BundleAdjustmentSummary summary =
       solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
   motions_ = {};
+  return summary;
+}
+
+BundleAdjustmentSummary BundleAdjuster::solveTrajectory(
+    std::span<BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+    std::span<Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+    std::span<const BaObservation> observations, BaIntrinsics& k,
+    const BundleAdjustmentOptions& options, const RollingShutter& shutter,
+    std::span<const BaTrajectoryNeighbours> neighbours, std::span<RollingShutterMotion> motions) {
+  if (!rs_capacity_ || motions.size() != cameras.size() || neighbours.size() != cameras.size() ||
+      !std::isfinite(shutter.line_delay) || !std::isfinite(shutter.reference_row))
+    return {};  // kInvalidInput
+  const auto nc = static_cast<int>(cameras.size());
+  for (const BaTrajectoryNeighbours& nb : neighbours)
+    if (nb.previous < -1 || nb.previous >= nc || nb.next < -1 || nb.next >= nc) return {};
+  motions_ = motions;
+  neighbours_ = neighbours;
+  shutter_ = shutter;
+  velocity_prior_ = 0.0;  // no motion parameters
+  motion_prior_mean_ = {};
+  updateTrajectoryMotions(cameras);
+  BundleAdjustmentSummary summary =
+      solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
+  summary.line_delay = shutter_.line_delay;
+  motions_ = {};
+  neighbours_ = {};
   return summary;
 }
 
@@ -637,7 +915,10 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
   summary.status = Status::kMaxIterations;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     summary.iterations = iter + 1;
-    linearize(cameras, points, observations, k, options, L);
+    if (L.traj)
+      linearizeTrajectory(cameras, points, observations, k, options, L);
+    else
+      linearize(cameras, points, observations, k, options, L);
     const double grad_norm = rhs_.head(L.n).norm();
     // Damped solves until a step lowers the cost (Levenberg-Marquardt).
     bool accepted = false;
@@ -686,7 +967,32 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
   }
   summary.final_cost = cost;
   summary.final_rms_px = rms;
+  if (L.traj && options.refine_readout)
+    summary.line_delay_std_error =
+        lineDelayStdError(cameras, points, points_fixed, observations, k, options, L, cost);
   return summary;
+}
+
+double BundleAdjuster::lineDelayStdError(
+    std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
+    std::span<const uint8_t> points_fixed, std::span<const BaObservation> observations,
+    const BaIntrinsics& k, const BundleAdjustmentOptions& options, const Layout& L, double cost) {
+  // var = sigma^2 e^T A^-1 e on the reduced system at the minimum (the points eliminated, which
+  // is the marginal covariance), A = L L^T: |L^-1 e|^2. A tiny damping keeps the scale's gauge
+  // direction (held by nothing else) from making A singular.
+  linearizeTrajectory(cameras, points, observations, k, options, L);
+  if (!solveReducedSystem(1e-8, points_fixed, L)) return 0.0;
+  int index = -1;
+  for (int j = 0; j < L.nk; ++j)
+    if (L.kcol[j] == 3) index = L.k0 + j;
+  if (index < 0) return 0.0;
+  auto z = delta_.head(L.n);
+  z.setZero();
+  z(index) = 1.0;
+  A_.topLeftCorner(L.n, L.n).triangularView<Eigen::Lower>().solveInPlace(z);
+  const double dof = std::max(1.0, 2.0 * L.no - L.n - 3.0 * L.np);
+  const double sigma2 = 2.0 * cost / dof;
+  return std::sqrt(sigma2 * z.squaredNorm());
 }
 
 }  // namespace epitrack

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -29,6 +30,13 @@ struct BaIntrinsics {
   double k2 = 0.0;
 };
 
+/// A camera's neighbours along the trajectory (the cameras of the previous and the next frame; -1:
+/// none), for the smooth-trajectory rolling-shutter adjustment.
+struct BaTrajectoryNeighbours {
+  int previous = -1;
+  int next = -1;
+};
+
 /// One measurement: point `point` seen by camera `camera` at pixel `xy`.
 struct BaObservation {
   int camera = 0;
@@ -55,6 +63,9 @@ struct BundleAdjustmentOptions {
   /// free are nearly degenerate (the scene can bend to absorb them: Albl et al., ECCV 2016), and
   /// tying each to the trajectory's motion removes that.
   std::span<const RollingShutterMotion> motion_prior_mean;
+  /// The smooth-trajectory adjustment (solveTrajectory): also estimate the line delay (the
+  /// readout), one parameter shared by every camera.
+  bool refine_readout = false;
 };
 
 struct BundleAdjustmentSummary {
@@ -70,6 +81,11 @@ struct BundleAdjustmentSummary {
   double final_cost = 0.0;
   double initial_rms_px = 0.0;  ///< RMS reprojection error before and after (plain, not robust)
   double final_rms_px = 0.0;
+  /// solveTrajectory: the line delay at the end (frame intervals per row) and, with
+  /// refine_readout, its standard error (from the reduced system's inverse at the minimum, scaled
+  /// by the residuals' variance; 0 when not refined).
+  double line_delay = 0.0;
+  double line_delay_std_error = 0.0;
 };
 
 /// Sparse bundle adjustment by Levenberg-Marquardt with the Schur complement (Triggs et al.,
@@ -118,6 +134,30 @@ class BundleAdjuster {
                                 const RollingShutter& shutter,
                                 std::span<RollingShutterMotion> motions);
 
+  /// The rolling-shutter adjustment with a smooth trajectory (issue 27): no motion parameters;
+  /// each camera's motion over the readout is the trajectory's motion at that camera, the central
+  /// difference of its neighbours' poses (one-sided with one neighbour, zero with none):
+  ///   w = (Log(R_p R_c^T) - Log(R_n R_c^T)) / 2,   v = (c_n - c_p) / 2   (per frame interval),
+  /// so the motion within a readout is tied to the motion between frames and the readout (the
+  /// line delay, `options.refine_readout`) is observable as one parameter. An observation then
+  /// touches its camera and that camera's neighbours; the reduced system stays 6 per free camera
+  /// (a point's coupling blocks are merged per camera, so a point seen in k consecutive frames
+  /// pairs k + 2 blocks). `neighbours.size()` and `motions.size()` must equal `cameras.size()`;
+  /// `motions` receives the trajectory's motions at the end. Needs the rolling-shutter capacity.
+  BundleAdjustmentSummary solveTrajectory(
+      std::span<BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+      std::span<Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+      std::span<const BaObservation> observations, BaIntrinsics& intrinsics,
+      const BundleAdjustmentOptions& options, const RollingShutter& shutter,
+      std::span<const BaTrajectoryNeighbours> neighbours, std::span<RollingShutterMotion> motions);
+
+  /// The trajectory's motion at camera c (see solveTrajectory) and, when `D` is given, its
+  /// derivative with respect to the pose updates (dtheta, dt) of the previous camera (columns
+  /// 0-5), c itself (6-11) and the next camera (12-17).
+  static RollingShutterMotion trajectoryMotion(std::span<const BaCamera> cameras,
+                                               const BaTrajectoryNeighbours& neighbours, int c,
+                                               Eigen::Matrix<double, 6, 18>* D);
+
   /// Rolling-shutter projection: the pixel where `X` is seen (the fixed point of its row, to
   /// 1e-9 px) and the row's time `tau`; false when behind the camera or not settling.
   static bool projectRollingShutter(const BaCamera& camera, const RollingShutterMotion& motion,
@@ -130,7 +170,8 @@ class BundleAdjuster {
       const BaCamera& camera, const RollingShutterMotion& motion, const RollingShutter& shutter,
       const BaIntrinsics& k, const Eigen::Vector3d& X, Eigen::Vector2d& uv,
       Eigen::Matrix<double, 2, 6>& J_cam, Eigen::Matrix<double, 2, 6>& J_motion,
-      Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr);
+      Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr,
+      Eigen::Vector2d* J_line_delay = nullptr);
 
   /// Projection used by the adjustment (for tests and callers): false when behind the camera.
   static bool project(const BaCamera& camera, const BaIntrinsics& k, const Eigen::Vector3d& X,
@@ -152,8 +193,9 @@ class BundleAdjuster {
     int nk = 0;                  // intrinsics refined
     int k0 = 0;                  // their first index (6 x free cameras)
     int n = 0;                   // reduced-system size
-    int kcol[3] = {0, 0, 0};
-    bool rs = false;  // rolling shutter: 12 per free camera, the motion at slot + 6
+    int kcol[4] = {0, 0, 0, 0};  // 0: f, 1: k1, 2: k2, 3: the line delay
+    bool rs = false;             // rolling shutter: 12 per free camera, the motion at slot + 6
+    bool traj = false;  // smooth trajectory: 6 per free camera, observations touch neighbours
   };
   BundleAdjustmentSummary solveImpl(std::span<BaCamera> cameras,
                                     std::span<const uint8_t> camera_fixed,
@@ -175,6 +217,19 @@ class BundleAdjuster {
   void linearize(std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
                  std::span<const BaObservation> observations, const BaIntrinsics& k,
                  const BundleAdjustmentOptions& options, const Layout& L);
+  /// linearize for the smooth-trajectory model (pair_Wc_ accumulated per merged entry).
+  void linearizeTrajectory(std::span<const BaCamera> cameras,
+                           std::span<const Eigen::Vector3d> points,
+                           std::span<const BaObservation> observations, const BaIntrinsics& k,
+                           const BundleAdjustmentOptions& options, const Layout& L);
+  /// The trajectory's motions of every camera from the current poses (into motions_).
+  void updateTrajectoryMotions(std::span<const BaCamera> cameras);
+  /// The line delay's standard error at the current parameters (after the iterations).
+  double lineDelayStdError(std::span<const BaCamera> cameras,
+                           std::span<const Eigen::Vector3d> points,
+                           std::span<const uint8_t> points_fixed,
+                           std::span<const BaObservation> observations, const BaIntrinsics& k,
+                           const BundleAdjustmentOptions& options, const Layout& L, double cost);
   /// The damped Schur complement for `lambda` solved for the camera and intrinsics step
   /// (delta_); false when it is not positive definite.
   bool solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed, const Layout& L);
@@ -202,6 +257,11 @@ class BundleAdjuster {
   /// The motion prior's residual of camera c: its motion less the prior's mean.
   [[nodiscard]] Eigen::Matrix<double, 6, 1> motionPriorResidual(std::size_t c) const;
   std::vector<RollingShutterMotion> motions_backup_;
+  // The smooth-trajectory solve in progress (empty: not that model).
+  std::span<const BaTrajectoryNeighbours> neighbours_;
+  std::vector<Eigen::Matrix<double, 6, 18>> motion_D_;  // per camera d motion / d poses
+  std::vector<std::array<int, 3>> obs_entry_;           // per observation its merged pair entries
+  double line_delay_backup_ = 0.0;
   std::vector<Eigen::Matrix<double, 6, 3>> Wv_;  // per observation J_motion^T W J_p
   std::vector<int> pair_begin_;                  // per point, its first pair entry
   // Workspaces (sized in the constructor).
@@ -222,7 +282,7 @@ class BundleAdjuster {
   std::vector<Eigen::Matrix3d> V_;               // per point J_p^T W J_p
   std::vector<Eigen::Vector3d> gp_;              // per point J_p^T W r
   std::vector<Eigen::Matrix<double, 6, 3>> Wc_;  // per observation J_c^T W J_p
-  std::vector<Eigen::Matrix<double, 3, 3>> Wk_;  // per observation J_k^T W J_p
+  std::vector<Eigen::Matrix<double, 4, 3>> Wk_;  // per observation J_k^T W J_p
   std::vector<Eigen::Matrix3d> Vinv_;
   std::vector<Eigen::Vector3d> dp_;
   std::vector<BaCamera> cameras_backup_;

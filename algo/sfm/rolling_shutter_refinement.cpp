@@ -182,6 +182,14 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   if (cameras.size() < 2 || observations.size() < 20) return;
   BundleAdjuster ba(static_cast<int>(cameras.size()), static_cast<int>(X.size()),
                     static_cast<int>(observations.size()), true);
+  std::vector<BaTrajectoryNeighbours> neighbours(cameras.size());
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const int c = camera_of_frame[f];
+    if (c < 0) continue;
+    if (f > 0) neighbours[static_cast<std::size_t>(c)].previous = camera_of_frame[f - 1];
+    if (f + 1 < frames.size())
+      neighbours[static_cast<std::size_t>(c)].next = camera_of_frame[f + 1];
+  }
   BundleAdjustmentOptions bo;
   bo.max_iterations = options.ba_iterations;
   bo.huber_px = options.huber_px;
@@ -190,13 +198,22 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   bo.velocity_prior = prior;
   bo.motion_prior_mean = ba_targets;
   BaIntrinsics k{K.fx, K.fy / K.fx, K.cx, K.cy, K.k1, K.k2};
-  const auto summary = ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);
+  bo.refine_readout = options.refine_readout;
+  const auto summary =
+      options.smooth_trajectory
+          ? ba.solveTrajectory(cameras, fixed, X, {}, observations, k, bo, shutter, neighbours,
+                               ba_motions)
+          : ba.solve(cameras, fixed, X, {}, observations, k, bo, shutter, ba_motions);
   if (summary.status == BundleAdjustmentSummary::Status::kInvalidInput ||
       summary.status == BundleAdjustmentSummary::Status::kNumericalFailure ||
       !(std::isfinite(k.f) && k.f > 0.0))
     return;
   result.ba_iterations = summary.iterations;
   result.ba_observations = static_cast<int>(observations.size());
+  if (options.smooth_trajectory) {
+    result.line_delay = summary.line_delay;
+    result.line_delay_std_error = summary.line_delay_std_error;
+  }
   const double aspect = K.fy / K.fx;
   K.fx = k.f;
   K.fy = k.f * aspect;
@@ -225,6 +242,17 @@ RollingShutterRefinementResult refineRollingShutter(
       w.point_of_track[static_cast<std::size_t>(points[p].track)] = static_cast<int>(p);
   result.rms_before_px =
       reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
+  result.line_delay = shutter.line_delay;
+  if (options.smooth_trajectory) {
+    // The global-shutter poses are the middle rows' to within the rows' error; the motions follow
+    // from them, so the adjustment starts directly. The rms after uses the readout found.
+    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, {}, 0.0, result);
+    RollingShutter found = shutter;
+    found.line_delay = result.line_delay;
+    result.rms_after_px =
+        reprojectionRms(tracks, K, found, frames, points, motions, w, options.reproj_threshold_px);
+    return result;
+  }
   for (int round = 0; round < options.rounds; ++round) {
     result.frames = resectFrames(tracks, K, shutter, frames, points, motions, options, w);
     result.points = intersectPoints(tracks, K, shutter, frames, points, motions, options, w);

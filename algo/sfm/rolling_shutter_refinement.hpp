@@ -34,6 +34,13 @@ struct RollingShutterRefinementOptions {
   /// degenerate (the scene bends to absorb them; Albl et al., "Degeneracies in rolling shutter
   /// SfM", ECCV 2016); the trajectory removes that. Needs the readout right (given).
   double trajectory_prior = 0.0;
+  /// The smooth-trajectory model (BundleAdjuster::solveTrajectory): each frame's motion over the
+  /// readout is the trajectory's at that frame (central differences of the neighbouring poses),
+  /// not a parameter of its own; no resection-intersection rounds (the global-shutter poses give
+  /// the motions). Replaces the per-frame motions and `trajectory_prior`.
+  bool smooth_trajectory = false;
+  /// With `smooth_trajectory`: also estimate the readout (one parameter; `shutter` is the start).
+  bool refine_readout = false;
 };
 
 struct RollingShutterRefinementResult {
@@ -43,12 +50,17 @@ struct RollingShutterRefinementResult {
   double rms_after_px = 0.0;   ///< and after
   int ba_iterations = 0;       ///< iterations of the joint adjustment (0: not run)
   int ba_observations = 0;
+  /// The line delay at the end (the given one unless refine_readout) and its standard error
+  /// (refine_readout), frame intervals per row.
+  double line_delay = 0.0;
+  double line_delay_std_error = 0.0;
 };
 
 /// Refines `frames` (reference-row poses), `points` and writes each frame's readout motion into
 /// `motions` (one per frame; zero for unsolved frames). `K`: the solve's intrinsics (its focal
-/// refined with `options.refine_focal`). The first solved frame's pose holds the gauge. Allocates
-/// its working buffers (once per solve, offline).
+/// refined with `options.refine_focal`). With `options.smooth_trajectory` the motions are the
+/// trajectory's and the readout may be estimated (result.line_delay). The first solved frame's pose
+/// holds the gauge. Allocates its working buffers (once per solve, offline).
 RollingShutterRefinementResult refineRollingShutter(const TrackTable& tracks, CameraIntrinsics& K,
                                                     const RollingShutter& shutter,
                                                     std::vector<SolvedFrame>& frames,

@@ -162,3 +162,59 @@ TEST_CASE("Rolling shutter: the readout estimated on a shaky clip, and zero on a
   CHECK(rs.readout_frames > 3.0 * rs.std_error);
   CHECK(std::fabs(rs.readout_frames - 0.9) < 0.45);
 }
+
+TEST_CASE(
+    "Rolling shutter: the smooth-trajectory model estimates the readout of a shaky clip, and "
+    "zero on a global shutter",
+    "[sfm][rs][slow]") {
+  // As epitrack-solve --readout auto: the readout starts at half a frame interval and is one
+  // parameter of the adjustment, each frame's motion the trajectory's.
+  struct Run {
+    double readout = 0.0, std_error = 0.0, rms = 0.0;
+    eval::TrajectoryMetrics metrics;
+  };
+  const auto run = [](RsClip& c) {
+    const Solver s = solveGlobal(c);
+    std::vector<SolvedFrame> frames = s.frames();
+    std::vector<MapPoint> points = s.points();
+    std::vector<RollingShutterMotion> motions;
+    RollingShutterRefinementOptions o;
+    o.smooth_trajectory = true;
+    o.refine_readout = true;
+    CameraIntrinsics K = c.K;
+    const auto r = refineRollingShutter(c.tracks, K, RollingShutter::fromReadout(0.5, 480, 239.5),
+                                        frames, points, motions, o);
+    Run out;
+    out.readout = r.line_delay * 479.0;
+    out.std_error = r.line_delay_std_error * 479.0;
+    out.rms = r.rms_after_px;
+    out.metrics = score(c, frames);
+    return out;
+  };
+  RsClip still;
+  makeClip(still, synth::SceneKind::kShake, 120, 0.0);
+  const auto reference = score(still, solveGlobal(still).frames());
+  const Run zero = run(still);
+  RsClip c;
+  makeClip(c, synth::SceneKind::kShake, 120, 30.0 / 33.3);
+  const Run rs = run(c);
+  INFO("global shutter: readout " << zero.readout << " +- " << zero.std_error << " frames, ATE "
+                                  << 100.0 * zero.metrics.ate_rmse_rel << " % (solved as global "
+                                  << 100.0 * reference.ate_rmse_rel << " %); rolling, 0.9 frames: "
+                                  << rs.readout << " +- " << rs.std_error << ", ATE "
+                                  << 100.0 * rs.metrics.ate_rmse_rel << " %, RPE rotation "
+                                  << rs.metrics.rpe_rot_deg_mean << " deg (global shutter "
+                                  << reference.rpe_rot_deg_mean << "), rms " << rs.rms << " px");
+  // Measured (2026-12-03): 1.065 +- 0.001 frames, ATE 0.95 %, rms 0.46 px; the global shutter
+  // 0.00014 +- 0.0009 frames, its ATE unchanged (0.0898 %). The shake's jitter reaches 8 Hz (1.7
+  // rad per frame at 30 fps), where a central difference of the poses gives 0.6 of the motion
+  // within a readout: the readout comes out high and the model is short of issue 27's 5 % here
+  // (the per-frame motions fit this clip better: ATE 0.30 %, test above).
+  CHECK(std::fabs(rs.readout - 0.9) < 0.2 * 0.9);
+  CHECK(rs.std_error > 0.0);
+  CHECK(rs.readout > 3.0 * rs.std_error);
+  CHECK(rs.metrics.ate_rmse_rel < 1.5 * 0.01);
+  CHECK(std::fabs(zero.readout) < std::max(3.0 * zero.std_error, 0.003));
+  CHECK(zero.metrics.ate_rmse_rel < 1.05 * reference.ate_rmse_rel);
+  CHECK(rs.rms < 0.5);  // the noise: sqrt(2) x 0.3 px = 0.42 px
+}

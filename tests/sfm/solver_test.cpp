@@ -57,10 +57,12 @@ void makeClip(Clip& c, synth::SceneKind kind, int frames, double wander, double 
 // A clip's tracks as a frame-to-frame tracker gives them: a landmark that leaves the view and
 // comes back is a new track (a fast pan sweeps the same walls again after each reversal, and a
 // landmark id kept over the gap would hand the solver baselines no tracker offers).
-void makeTrackerClip(Clip& c, synth::SceneKind kind, int frames, double walk_m, double noise_px) {
+void makeTrackerClip(Clip& c, synth::SceneKind kind, int frames, double walk_m, double noise_px,
+                     uint64_t scene_seed = 1) {
   c.options.kind = kind;
   c.options.frames = frames;
   c.options.walk_m = walk_m;
+  c.options.seed = scene_seed;
   synth::SyntheticSequence seq(c.options);
   std::vector<synth::LandmarkObservation> lm;
   std::vector<int> last_seen, track_of;
@@ -434,5 +436,37 @@ TEST_CASE("A fast pan is solved as a tripod only when a rotation explains its tr
     std::printf("fast pan on a tripod, focal %g: worst rotation error %.3f deg\n", focal, worst);
     INFO("worst relative rotation error " << worst << " deg");
     CHECK(worst < 1.0);
+  }
+}
+
+TEST_CASE("Fast pans walking on other scenes and at half the speed are never rotation-only",
+          "[sfm][solver][tripod][slow]") {
+  for (const uint64_t seed : {2u, 3u}) {
+    for (const double walk : {0.012, 0.006}) {
+      Clip c;
+      makeTrackerClip(c, synth::SceneKind::kFastPan, 120, walk, 0.05, seed);
+      for (const double focal : {600.0, 0.0}) {
+        SolverOptions o;
+        o.focal_px = focal;
+        Solver s(c.tracks, c.options.width, c.options.height, o);
+        REQUIRE(s.calibrate());
+        s.initialize();
+        INFO("seed " << seed << " walk " << walk << " focal " << focal << ": "
+                     << toString(s.status()) << " " << s.summary().message);
+        CHECK(s.status() != Solver::Status::kRotationOnly);
+        CHECK(s.summary().motion != MotionClass::kRotationOnly);
+      }
+    }
+  }
+  // The same scenes on a tripod stay tripod solves.
+  for (const uint64_t seed : {2u, 3u}) {
+    Clip c;
+    makeTrackerClip(c, synth::SceneKind::kFastPan, 120, 0.0, 0.05, seed);
+    Solver s(c.tracks, c.options.width, c.options.height, SolverOptions{});
+    REQUIRE(s.calibrate());
+    CHECK_FALSE(s.initialize());
+    INFO("tripod seed " << seed << ": " << toString(s.status()) << " " << s.summary().message);
+    CHECK(s.status() == Solver::Status::kRotationOnly);
+    CHECK(s.solvedFrames() == 120);
   }
 }

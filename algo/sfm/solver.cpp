@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 
@@ -440,14 +441,53 @@ bool Solver::initialize() {
     // Short or forward motions may not reach every target: the widest baseline is a candidate.
     if (t < 4 && widest > 0 && widest != last_tried && widest_d >= 0.02 * width_) consider(widest);
   }
+  // Short pairs that all fit rotations do not make a tripod: a fast pan crosses the image in a
+  // few frames, too soon for a walking camera's parallax to show. The rotation is accepted only
+  // when it explains the tracks to their noise over the widest windows (checkRotationModel);
+  // otherwise those windows are the initial pair's candidates. (Not the other way round: under a
+  // pure rotation F is degenerate, and a wrong relative pose from it can triangulate 30 points
+  // with a degree of "parallax" between long-lived tracks.)
   if (best_score <= 0.0 && rotation_coherent) {
-    if (!tripodSolve()) {  // its result was ignored: a failed tripod solve stayed "ok"
-      status_ = Status::kInitFailed;
-      message_ =
-          "the frames are related by rotations, but the tripod solve found no focal or no frame "
-          "with 8 tracks";
+    const RotationCheck rotation = checkRotationModel();
+    if (rotation.holds) {
+      if (!tripodSolve()) {  // its result was ignored: a failed tripod solve stayed "ok"
+        status_ = Status::kInitFailed;
+        message_ =
+            "the frames are related by rotations, but the tripod solve found no focal or no "
+            "frame with 8 tracks";
+      }
+      return false;
     }
-    return false;
+    const int wide_step = std::max(1, n / 30);
+    for (int a = 0; a + 1 < n; a += wide_step) {
+      const int b = farthestPartner(a, kRotationWindowTracks);
+      if (b < a + 2) continue;
+      for (const int partner : {b, (a + b + 1) / 2}) {
+        double score = 0.0;
+        PoseCw pose;
+        if (tryPair(a, partner, score, pose, tr, X) && score > best_score) {
+          best_score = score;
+          best_pose = pose;
+          best_tracks = tr;
+          best_X = X;
+          init_a_ = a;
+          init_b_ = partner;
+        }
+      }
+    }
+    if (best_score <= 0.0) {
+      char text[320];
+      std::snprintf(text, sizeof(text),
+                    "the short frame pairs fit rotations, but over the widest windows the tracks "
+                    "do not (homography residual %.3f px against noise %.3f px, %d of %d windows "
+                    "beyond %.1fx): the camera moves, and no pair of frames has the parallax for "
+                    "a 3D start",
+                    rotation.residual_px, rotation.noise_px, rotation.parallax_windows,
+                    rotation.windows, kRotationResidualRatio);
+      status_ = Status::kInitFailed;
+      message_ = text;
+      return false;
+    }
   }
   if (best_score <= 0.0) {
     status_ = motion_ == MotionClass::kRotationOrPlane ? Status::kPlanarScene : Status::kInitFailed;

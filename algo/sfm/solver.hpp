@@ -127,6 +127,24 @@ struct MapPoint {
   int observations = 0;
 };
 
+/// The tripod test (Solver::checkRotationModel): whether a pure rotation explains the tracks to
+/// their noise level over the clip's widest windows, not only over the short calibration pairs.
+struct RotationCheck {
+  int windows = 0;           ///< frame windows tested (each as long as 30 tracks persist)
+  int parallax_windows = 0;  ///< windows whose ratio exceeds kRotationResidualRatio (parallax)
+  double noise_px = 0.0;     ///< median over the windows of the noise scale (sigma, from F)
+  double residual_px = 0.0;  ///< median over the windows of the homography residual scale
+  double ratio = 0.0;        ///< median over the windows of residual / noise
+  bool holds = false;        ///< a rotation: at most a fifth of the windows show parallax
+};
+/// Tracks a window of the tripod test keeps (its last frame is the farthest that shares them).
+inline constexpr int kRotationWindowTracks = 30;
+/// The largest ratio of a window's homography residual scale to its tracks' noise scale that is
+/// still a rotation (per window, measured: median 1.3-1.4 and 12 % of the windows beyond 2 on
+/// rendered tripod pans, 1.07 and none beyond 2 on ideal Gaussian tracks; 40-90 % beyond 2 on
+/// fast pans whose centre walks 0.6-1.2 cm/frame).
+inline constexpr double kRotationResidualRatio = 2.0;
+
 /// One candidate of the focal profile (SolverOptions::focal_sweep).
 struct FocalProfilePoint {
   double start_px = 0.0;          ///< the focal the solve started from
@@ -251,6 +269,11 @@ class Solver {
   int triangulateNewTracks(int f);
   void adjust(bool global);
   bool tripodSolve();
+  /// The rotation model tested over windows spanning as many frames as 30 tracks persist, each
+  /// judged by GRIC with the noise scale measured on its own tracks (RotationCheck).
+  [[nodiscard]] RotationCheck checkRotationModel() const;
+  /// The last frame after `a` that still shares `min_common` tracks with it (-1: none).
+  [[nodiscard]] int farthestPartner(int a, int min_common) const;
   /// Sets every frame's UnsolvedCause, then turns kOk / kRotationOnly into kPartial (with a
   /// message naming the unsolved ranges) when too few frames are solved.
   void assessCoverage();

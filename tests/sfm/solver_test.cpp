@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,41 @@ void makeClip(Clip& c, synth::SceneKind kind, int frames, double wander, double 
       c.tracks.add(f, l.id, l.x + noise_px * nx, l.y + noise_px * ny);
     }
     const auto p = seq.pose(f + first_frame);
+    c.gt.push_back({static_cast<double>(f), p.t_wc, Eigen::Quaterniond(p.R_wc)});
+  }
+  c.tracks.setFrameCount(frames);
+  c.tracks.finalize();
+}
+
+// A clip's tracks as a frame-to-frame tracker gives them: a landmark that leaves the view and
+// comes back is a new track (a fast pan sweeps the same walls again after each reversal, and a
+// landmark id kept over the gap would hand the solver baselines no tracker offers).
+void makeTrackerClip(Clip& c, synth::SceneKind kind, int frames, double walk_m, double noise_px,
+                     uint64_t scene_seed = 1) {
+  c.options.kind = kind;
+  c.options.frames = frames;
+  c.options.walk_m = walk_m;
+  c.options.seed = scene_seed;
+  synth::SyntheticSequence seq(c.options);
+  std::vector<synth::LandmarkObservation> lm;
+  std::vector<int> last_seen, track_of;
+  int next_track = 0;
+  SplitMix64 rng(42);
+  for (int f = 0; f < frames; ++f) {
+    seq.visibleLandmarks(f, lm);
+    for (const auto& l : lm) {
+      const auto id = static_cast<std::size_t>(l.id);
+      if (id >= last_seen.size()) {
+        last_seen.resize(id + 1, -2);
+        track_of.resize(id + 1, -1);
+      }
+      if (last_seen[id] != f - 1) track_of[id] = next_track++;
+      last_seen[id] = f;
+      const double ny = standardNormal(rng);
+      const double nx = standardNormal(rng);
+      c.tracks.add(f, track_of[id], l.x + noise_px * nx, l.y + noise_px * ny);
+    }
+    const auto p = seq.pose(f);
     c.gt.push_back({static_cast<double>(f), p.t_wc, Eigen::Quaterniond(p.R_wc)});
   }
   c.tracks.setFrameCount(frames);
@@ -354,4 +390,83 @@ TEST_CASE("Tripod solve: a first frame with fewer than 8 tracks is not counted a
   CHECK(s.frames()[0].unsolved == UnsolvedCause::kTracksLost);
   CHECK(s.solvedFrames() == 99);
   CHECK(s.frames()[1].pose.R_cw.isApprox(Eigen::Matrix3d::Identity()));
+}
+
+TEST_CASE("A fast pan is solved as a tripod only when a rotation explains its tracks",
+          "[sfm][solver][tripod]") {
+  // The same back-and-forth pan (up to 3.5 deg/frame) with the centre walking 1.2 cm/frame and
+  // on a tripod: the calibration pairs (two frames apart) fit rotations in both; only the widest
+  // windows tell them apart (Solver::checkRotationModel). Track noise 0.05 px, the tracker's on
+  // the rendered fast pan with sensor noise sigma 1 (0.02-0.06 px measured by the check).
+  constexpr double kTrackNoisePx = 0.05;
+  for (const double focal : {600.0, 0.0}) {
+    Clip walking;
+    makeTrackerClip(walking, synth::SceneKind::kFastPan, 120, 0.012, kTrackNoisePx);
+    SolverOptions o;
+    o.focal_px = focal;
+    Solver s(walking.tracks, walking.options.width, walking.options.height, o);
+    REQUIRE(s.calibrate());
+    s.initialize();
+    INFO("walking, focal " << focal << ": " << toString(s.status()) << " " << s.summary().message);
+    CHECK(s.status() != Solver::Status::kRotationOnly);
+    CHECK(s.summary().motion != MotionClass::kRotationOnly);
+  }
+  Clip tripod;
+  makeTrackerClip(tripod, synth::SceneKind::kFastPan, 120, 0.0, kTrackNoisePx);
+  for (const double focal : {600.0, 0.0}) {
+    SolverOptions o;
+    o.focal_px = focal;
+    Solver s(tripod.tracks, tripod.options.width, tripod.options.height, o);
+    REQUIRE(s.calibrate());
+    CHECK_FALSE(s.initialize());
+    INFO("tripod, focal " << focal << ": " << toString(s.status()) << " " << s.summary().message);
+    CHECK(s.status() == Solver::Status::kRotationOnly);
+    CHECK(s.solvedFrames() == 120);
+    CHECK(std::abs(s.summary().focal_px / 600.0 - 1.0) <= 0.02);
+    const Eigen::Matrix3d R0 = tripod.gt[0].rotation.toRotationMatrix();
+    const Eigen::Matrix3d E0 = s.frames()[0].pose.R_cw.transpose();
+    double worst = 0.0;
+    for (int f = 0; f < 120; ++f) {
+      const Eigen::Matrix3d Rg =
+          R0.transpose() * tripod.gt[static_cast<std::size_t>(f)].rotation.toRotationMatrix();
+      const Eigen::Matrix3d Re =
+          E0.transpose() * s.frames()[static_cast<std::size_t>(f)].pose.R_cw.transpose();
+      worst = std::max(worst, rotationAngle(Rg.transpose() * Re) * 180.0 / M_PI);
+    }
+    std::printf("fast pan on a tripod, focal %g: worst rotation error %.3f deg\n", focal, worst);
+    INFO("worst relative rotation error " << worst << " deg");
+    CHECK(worst < 1.0);
+  }
+}
+
+TEST_CASE("Fast pans walking on other scenes and at half the speed are never rotation-only",
+          "[sfm][solver][tripod][slow]") {
+  for (const uint64_t seed : {2u, 3u}) {
+    for (const double walk : {0.012, 0.006}) {
+      Clip c;
+      makeTrackerClip(c, synth::SceneKind::kFastPan, 120, walk, 0.05, seed);
+      for (const double focal : {600.0, 0.0}) {
+        SolverOptions o;
+        o.focal_px = focal;
+        Solver s(c.tracks, c.options.width, c.options.height, o);
+        REQUIRE(s.calibrate());
+        s.initialize();
+        INFO("seed " << seed << " walk " << walk << " focal " << focal << ": "
+                     << toString(s.status()) << " " << s.summary().message);
+        CHECK(s.status() != Solver::Status::kRotationOnly);
+        CHECK(s.summary().motion != MotionClass::kRotationOnly);
+      }
+    }
+  }
+  // The same scenes on a tripod stay tripod solves.
+  for (const uint64_t seed : {2u, 3u}) {
+    Clip c;
+    makeTrackerClip(c, synth::SceneKind::kFastPan, 120, 0.0, 0.05, seed);
+    Solver s(c.tracks, c.options.width, c.options.height, SolverOptions{});
+    REQUIRE(s.calibrate());
+    CHECK_FALSE(s.initialize());
+    INFO("tripod seed " << seed << ": " << toString(s.status()) << " " << s.summary().message);
+    CHECK(s.status() == Solver::Status::kRotationOnly);
+    CHECK(s.solvedFrames() == 120);
+  }
 }

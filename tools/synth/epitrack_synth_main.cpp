@@ -85,6 +85,10 @@ int main(int argc, char** argv) {
           "shake: peak rotational jitter per axis in degrees; the jerks scale with it "
           "(default 2)",
           &o.shake_deg, 0.0, 10.0);
+  cl.real("walk", "METRES",
+          "fastpan: sideways walk of the camera centre per frame (default 0.012); 0 = the same "
+          "pan on a tripod",
+          &o.walk_m, 0.0, 1.0);
   cl.text("rolling-shutter", "READOUT",
           "rolling shutter: time from the first row's exposure to the last row's, in frame "
           "intervals (0.9)\n"
@@ -190,6 +194,9 @@ int main(int argc, char** argv) {
       " --size " + size + " --seed " + std::to_string(seed) +
       (o.kind == synth::SceneKind::kShake ? " --shake " + formatNumber(o.shake_deg)
                                           : std::string()) +
+      (o.kind == synth::SceneKind::kFastPan && o.walk_m != 0.012
+           ? " --walk " + formatNumber(o.walk_m)
+           : std::string()) +
       (o.kind == synth::SceneKind::kOrbit && o.orbit_speed_deg != 0.25
            ? " --orbit-speed " + formatNumber(o.orbit_speed_deg)
            : std::string()) +

@@ -49,6 +49,7 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options) : options_(opt
   trajectory_.target_wander = options.target_wander;
   trajectory_.orbit_speed_deg = options.orbit_speed_deg;
   trajectory_.shake_deg = options.shake_deg;
+  trajectory_.walk_m = options.walk_m;
   trajectory_.seed = options.seed;
 }
 

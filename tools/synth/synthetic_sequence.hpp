@@ -23,6 +23,7 @@ struct SynthOptions {
   double target_wander = 0.0;     ///< orbit: look-at target motion amplitude (m)
   double orbit_speed_deg = 0.25;  ///< orbit: degrees of arc per frame
   double shake_deg = 2.0;         ///< shake: peak rotational jitter per axis (degrees)
+  double walk_m = 0.012;          ///< fastpan: sideways walk of the centre per frame (0: tripod)
   /// Rolling shutter: time from the exposure of the first row to that of the last, in frame
   /// intervals (0: global shutter). The frame's pose (groundtruth.txt) is the middle row's.
   double readout = 0.0;

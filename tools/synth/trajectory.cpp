@@ -206,10 +206,12 @@ Pose trajectoryPose(const TrajectoryParams& params, double t) {
     case SceneKind::kFastPan: {
       // Yaw = A (sin x - sin 3x / 9), x = 2 pi t / 150: a nearly constant angular speed of
       // 2.5-3.5 deg/frame over most of each sweep and a reversal every 75 frames (2.5 s at 30 fps).
-      // The centre walks 1.2 cm/frame sideways (2.4 m over 200 frames): enough parallax on the
-      // boxes and walls for a full 6-DoF solve, so the clip is a fast pan, not a tripod shot.
-      const Eigen::Vector3d eye(-1.2 + 0.012 * t, -6.0 + 0.004 * t,
-                                1.6 + 0.02 * wave(t, 37.0, 0.3));
+      // The centre walks 1.2 cm/frame sideways by default (2.4 m over 200 frames): enough
+      // parallax on the boxes and walls for a full 6-DoF solve, so the clip is a fast pan, not a
+      // tripod shot. walk_m 0 keeps the centre at (-1.2, -6, 1.6): the same pan on a tripod.
+      const double walk = params.walk_m / 0.012;  // 1 at the default walk
+      const Eigen::Vector3d eye(-1.2 + params.walk_m * t, -6.0 + 0.004 * walk * t,
+                                1.6 + 0.02 * walk * wave(t, 37.0, 0.3));
       const double x = 2.0 * kPi * t / 150.0;
       const double yaw = degToRad(88.0 * (portableSin(x) - portableSin(3.0 * x) / 9.0));
       const double pitch = degToRad(-4.0 + 3.0 * wave(t, 97.0, 0.7));

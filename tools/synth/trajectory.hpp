@@ -38,6 +38,9 @@ struct TrajectoryParams {
   double target_wander = 0.0;     ///< orbit only: amplitude (m) of the look-at target's motion
   double orbit_speed_deg = 0.25;  ///< orbit only: degrees of arc per frame
   double shake_deg = 2.0;         ///< shake only: peak rotational jitter (degrees), jerks scale too
+  /// fastpan only: the centre's sideways walk per frame in metres (its forward drift and bob
+  /// scale with it); 0 is a true tripod shot with the same rotation.
+  double walk_m = 0.012;
   uint64_t seed = 1;
 };
 

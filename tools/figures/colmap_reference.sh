@@ -117,6 +117,17 @@ PY
   timed colmap_map colmap mapper --database_path "$db" --image_path "$frames" \
     --output_path "$w/sparse" --Mapper.num_threads 1 --Mapper.ba_refine_focal_length 0 \
     --Mapper.ba_refine_principal_point 0 --Mapper.ba_refine_extra_params 0
+  mapper_options="default options"
+  if [ -z "$(ls -A "$w/sparse")" ]; then
+    # No model with the defaults (the TUM cabinet: no initial pair): the relaxed initialisation
+    # of the sequential mode above.
+    mapper_options="init_min_tri_angle 4, init_min_num_inliers 50, abs_pose_min_num_inliers 15"
+    timed colmap_map_relaxed colmap mapper --database_path "$db" --image_path "$frames" \
+      --output_path "$w/sparse" --Mapper.num_threads 1 --Mapper.ba_refine_focal_length 0 \
+      --Mapper.ba_refine_principal_point 0 --Mapper.ba_refine_extra_params 0 \
+      --Mapper.init_min_tri_angle 4 --Mapper.abs_pose_min_num_inliers 15 \
+      --Mapper.init_min_num_inliers 50
+  fi
   # The largest model (COLMAP numbers its models in the order found, not by size).
   best=""
   best_n=0
@@ -132,9 +143,9 @@ PY
   echo "|---|---|---|---|"
   if [ -n "$best" ]; then
     python3 "$model" to-tum "$best/images.txt" "$w/colmap.tum"
-    row "COLMAP 3.8 (SIFT, exhaustive, $models model(s))" "$w/colmap.tum" "$(total colmap_)"
+    row "COLMAP 3.8 (SIFT, exhaustive, $mapper_options, $models model(s))" "$w/colmap.tum" "$(total colmap_)"
   else
-    row "COLMAP 3.8 (SIFT, exhaustive, no model)" /nonexistent "$(total colmap_)"
+    row "COLMAP 3.8 (SIFT, exhaustive, $mapper_options, no model)" /nonexistent "$(total colmap_)"
   fi
   timed epitrack taskset -c 0 "$solve" "$frames" --out "$w/epitrack" --intrinsics "$intr" --quiet --force
   status=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["status"])' \

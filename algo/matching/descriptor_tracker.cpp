@@ -5,6 +5,8 @@
 
 #include <Eigen/LU>
 
+#include "algo/geometry/undistort.hpp"
+
 namespace epitrack {
 
 namespace {
@@ -204,6 +206,15 @@ bool DescriptorTracker::refit(int n, Eigen::Matrix3d& F) const {
   return true;
 }
 
+Eigen::Vector2d DescriptorTracker::undistortedPixel(double x, double y) const {
+  if (!undistorts()) return {x, y};
+  const double fy = options_.focal_px * options_.aspect;
+  const Eigen::Vector2d n = undistortNormalized(
+      options_.k1, options_.k2,
+      Eigen::Vector2d((x - options_.cx) / options_.focal_px, (y - options_.cy) / fy));
+  return {options_.cx + options_.focal_px * n.x(), options_.cy + fy * n.y()};
+}
+
 Eigen::Vector2d DescriptorTracker::normalize(const Eigen::Vector2d& px) const {
   return Eigen::Vector2d((px.x() - options_.cx) / options_.focal_px,
                          (px.y() - options_.cy) / (options_.focal_px * options_.aspect));
@@ -218,8 +229,8 @@ bool DescriptorTracker::verify(const Slot& older, const Slot& current, int count
   const auto position = [&](const DescriptorMatch& m, Eigen::Vector2d& a, Eigen::Vector2d& b) {
     const Keypoint& p = older.keypoints[static_cast<std::size_t>(m.a)];
     const Keypoint& q = current.keypoints[static_cast<std::size_t>(m.b)];
-    a = Eigen::Vector2d(static_cast<double>(p.x), static_cast<double>(p.y));
-    b = Eigen::Vector2d(static_cast<double>(q.x), static_cast<double>(q.y));
+    a = undistortedPixel(static_cast<double>(p.x), static_cast<double>(p.y));
+    b = undistortedPixel(static_cast<double>(q.x), static_cast<double>(q.y));
   };
   const double t = options_.fundamental.ransac.threshold;
   const double t2 = t * t;
@@ -446,8 +457,8 @@ void DescriptorTracker::propagate(Slot& previous, Slot& current, const SeedSet& 
     if (lk_.align(0, to, x, y, residual) != LkStatus::kTracked ||
         !(static_cast<double>(residual) <= options_.lk_max_residual))
       continue;
-    const Eigen::Vector2d xa(static_cast<double>(p.x), static_cast<double>(p.y));
-    const Eigen::Vector2d xb(static_cast<double>(x), static_cast<double>(y));
+    const Eigen::Vector2d xa = undistortedPixel(static_cast<double>(p.x), static_cast<double>(p.y));
+    const Eigen::Vector2d xb = undistortedPixel(static_cast<double>(x), static_cast<double>(y));
     if (!(sampsonSquared(seeds.F, xa, xb) <= t2)) continue;
     BinaryDescriptor up, ori;
     int16_t bin = 0;

@@ -67,6 +67,12 @@ struct DescriptorTrackerOptions {
   double focal_px = 0.0;
   double cx = 0.0, cy = 0.0;
   double aspect = 1.0;  ///< fy / fx
+  /// Known radial distortion (with focal_px; the model of CameraIntrinsics): every keypoint is
+  /// undistorted before verification, so E, the Sampson threshold and the LK propagation's
+  /// epipolar test see pinhole geometry. A k1 of -0.28 bends a line near the edge of the image by
+  /// tens of pixels, far beyond the 2 px threshold: without it the pairs of a wide-angle lens
+  /// verify only near the centre. Descriptors and matching stay on the image as taken.
+  double k1 = 0.0, k2 = 0.0;
   /// LK propagation, after the descriptor matching of a frame: every point of the previous frame
   /// that did not match into this one (a corner the detector missed here, weak texture, a
   /// repeated pattern) is aligned by pyramidal Lucas-Kanade (its patch in the previous frame as
@@ -99,8 +105,10 @@ struct FramePairMatches {
   int propagated = 0;  ///< LK propagation into frame_b (frame_a = frame_b - 1 only)
   int merged = 0;      ///< inliers that joined two tracks (not already one, no conflict)
   bool verified = false;
-  bool oriented = false;                        ///< matched with the oriented descriptor
-  Eigen::Matrix3d F = Eigen::Matrix3d::Zero();  ///< the verified model, x_b^T F x_a = 0 (pixels)
+  bool oriented = false;  ///< matched with the oriented descriptor
+  /// The verified model, x_b^T F x_a = 0 in pixels (undistorted pixels when the options give a
+  /// distortion: DescriptorTracker::undistortedPixel).
+  Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
 };
 
 /// Tracks from descriptor matching, for key frames that LK cannot bridge: each new frame's
@@ -139,6 +147,10 @@ class DescriptorTracker {
 
   [[nodiscard]] const DescriptorTrackerOptions& options() const { return options_; }
 
+  /// The pixel where (x, y) would be seen by the lens without its distortion (the pinhole image
+  /// through the same K); (x, y) itself when the options give no distortion.
+  [[nodiscard]] Eigen::Vector2d undistortedPixel(double x, double y) const;
+
  private:
   struct Slot {  // one frame of the matching window
     int frame = -1;
@@ -165,6 +177,9 @@ class DescriptorTracker {
   bool robustFit(int n, uint64_t seed, int max_iterations, Eigen::Matrix3d& F);
   bool refit(int n, Eigen::Matrix3d& F) const;
   [[nodiscard]] bool knownIntrinsics() const { return options_.focal_px > 0.0; }
+  [[nodiscard]] bool undistorts() const {
+    return knownIntrinsics() && (options_.k1 != 0.0 || options_.k2 != 0.0);
+  }
   [[nodiscard]] Eigen::Vector2d normalize(const Eigen::Vector2d& px) const;
 
   DescriptorTrackerOptions options_;

@@ -16,6 +16,7 @@
 #include "algo/geometry/pnp.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/two_view_model_selection.hpp"
+#include "algo/geometry/undistort.hpp"
 #include "algo/math/median.hpp"
 #include "algo/sfm/ba_camera_pose.hpp"
 #include "algo/sfm/bundle_adjustment.hpp"
@@ -114,15 +115,15 @@ Solver::Solver(const TrackTable& tracks, int width, int height, const SolverOpti
 
 Eigen::Vector2d Solver::normalized(const TrackObservation& o) const {
   Eigen::Vector2d d((o.x - cx_) / f_, (o.y - cy_) / (f_ * aspect_));
-  if (k1_ == 0.0 && k2_ == 0.0) return d;
-  // Invert x_d = x_u (1 + k1 r^2 + k2 r^4) by fixed-point iteration (converges for the mild
-  // distortion of ordinary lenses).
-  Eigen::Vector2d u = d;
-  for (int i = 0; i < 10; ++i) {
-    const double r2 = u.squaredNorm();
-    u = d / (1.0 + k1_ * r2 + k2_ * r2 * r2);
-  }
-  return u;
+  // Invert x_d = x_u (1 + k1 r^2 + k2 r^4) (Newton on the radius: the fixed-point iteration
+  // diverges near the corners of a wide-angle lens, k1 = -0.28).
+  return undistortNormalized(k1_, k2_, d);
+}
+
+Eigen::Vector2d Solver::undistortedPixel(const TrackObservation& o) const {
+  if ((k1_ == 0.0 && k2_ == 0.0) || !(f_ > 0.0)) return {o.x, o.y};
+  const Eigen::Vector2d n = normalized(o);
+  return {cx_ + f_ * n.x(), cy_ + f_ * aspect_ * n.y()};
 }
 
 int Solver::commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
@@ -134,8 +135,8 @@ int Solver::commonTracks(int a, int b, std::vector<Eigen::Vector2d>* x1,
     const TrackObservation* ob = tracks_.find(o.track, b);
     if (ob == nullptr) continue;
     ++n;
-    if (x1 != nullptr) x1->emplace_back(o.x, o.y);
-    if (x2 != nullptr) x2->emplace_back(ob->x, ob->y);
+    if (x1 != nullptr) x1->push_back(undistortedPixel(o));
+    if (x2 != nullptr) x2->push_back(undistortedPixel(*ob));
   }
   return n;
 }
@@ -292,8 +293,8 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
   for (const auto& o : tracks_.frame(a)) {
     const TrackObservation* ob = tracks_.find(o.track, b);
     if (ob == nullptr) continue;
-    x1.emplace_back(o.x, o.y);
-    x2.emplace_back(ob->x, ob->y);
+    x1.push_back(undistortedPixel(o));
+    x2.push_back(undistortedPixel(*ob));
     n1.push_back(normalized(o));
     n2.push_back(normalized(*ob));
     ids.push_back(o.track);

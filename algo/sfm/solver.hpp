@@ -255,6 +255,10 @@ class Solver {
 
  private:
   [[nodiscard]] Eigen::Vector2d normalized(const TrackObservation& o) const;
+  /// The observation in pixels without the lens distortion (K times normalized(o)), the
+  /// coordinates of the pixel-space fits (F, H, displacements); the pixel itself when there is
+  /// no distortion or no focal yet.
+  [[nodiscard]] Eigen::Vector2d undistortedPixel(const TrackObservation& o) const;
   bool tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<int>& tracks,
                std::vector<Eigen::Vector3d>& X) const;
   /// PnP-RANSAC on the map (paper §5.4): at least min_inliers inliers, and this fraction of the

@@ -65,7 +65,7 @@ int resolveMatchWindow(int window, long expected_frames) {
              : kChainMatchWindow;
 }
 
-double trackSurvival(const TrackTable& table, int frames) {
+double trackSurvival(const TrackTable& table, int frames, double* lowest_after_first) {
   std::vector<double> survival;
   for (int f = 0; f + 1 < std::min(frames, table.frameCount()); ++f) {
     const auto obs = table.frame(f);
@@ -77,6 +77,9 @@ double trackSurvival(const TrackTable& table, int frames) {
     for (const auto& o : obs) kept += table.find(o.track, f + 1) != nullptr ? 1 : 0;
     survival.push_back(static_cast<double>(kept) / static_cast<double>(obs.size()));
   }
+  if (lowest_after_first != nullptr)
+    *lowest_after_first =
+        survival.size() > 1 ? *std::min_element(survival.begin() + 1, survival.end()) : 1.0;
   if (survival.empty()) return 1.0;
   std::sort(survival.begin(), survival.end());
   const std::size_t n = survival.size();
@@ -169,9 +172,10 @@ void ClipTracker::decide() {
     probe.add(r.frame, r.id, static_cast<double>(r.x), static_cast<double>(r.y));
   probe.setFrameCount(frames_);
   probe.finalize();
-  const double survival = trackSurvival(probe, frames_);
-  char line[200];
-  if (survival >= probe_.min_survival) {
+  double lowest = 1.0;
+  const double survival = trackSurvival(probe, frames_, &lowest);
+  char line[240];
+  if (survival >= probe_.min_survival && lowest >= probe_.min_pair_survival) {
     chosen_ = Matcher::kLk;
     std::snprintf(line, sizeof(line),
                   "lk (auto: %.0f %% of the LK tracks survive from frame to frame over the first "
@@ -179,10 +183,16 @@ void ClipTracker::decide() {
                   100.0 * survival, frames_);
   } else {
     chosen_ = Matcher::kDescriptors;
-    std::snprintf(line, sizeof(line),
-                  "descriptors (auto: only %.0f %% of the LK tracks survive from frame to frame "
-                  "over the first %d frames, below %.0f %%: key frames)",
-                  100.0 * survival, frames_, 100.0 * probe_.min_survival);
+    if (survival < probe_.min_survival)
+      std::snprintf(line, sizeof(line),
+                    "descriptors (auto: only %.0f %% of the LK tracks survive from frame to frame "
+                    "over the first %d frames, below %.0f %%: key frames)",
+                    100.0 * survival, frames_, 100.0 * probe_.min_survival);
+    else
+      std::snprintf(line, sizeof(line),
+                    "descriptors (auto: a frame pair among the first %d frames keeps only %.0f %% "
+                    "of its LK tracks, below %.0f %%: a cut in the file order, a photo set)",
+                    frames_, 100.0 * lowest, 100.0 * probe_.min_pair_survival);
     descriptors_ =
         std::make_unique<DescriptorTracker>(descriptor_options_, width_, height_, expected_frames_);
     for (std::size_t i = 0; i < kept_frames_.size(); ++i)

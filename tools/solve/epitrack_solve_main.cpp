@@ -110,7 +110,8 @@ int main(int argc, char** argv) {
             "2D tracks: lk = pyramidal Lucas-Kanade frame to frame (video); descriptors = "
             "oriented BRIEF matched against the previous frames, verified, chained (key frames, "
             "photo sets); auto (default) = LK unless fewer than 35 % of its tracks survive from "
-            "frame to frame over the first 5 frames",
+            "frame to frame over the first 16 frames, or a pair after the first keeps fewer "
+            "than 30 % (a cut in the file order)",
             &matcher);
   cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
              &o.matching.features.max_features, 50, 100000);

@@ -38,6 +38,8 @@ StageResult startTracker(SolveRun& run, long expected) {
     matching.cx = so.has_principal_point ? so.cx : (width - 1) * 0.5;
     matching.cy = so.has_principal_point ? so.cy : (height - 1) * 0.5;
     matching.aspect = so.aspect;
+    matching.k1 = so.k1;  // verification on undistorted points (issue 22 item 3)
+    matching.k2 = so.k2;
   }
   run.tracker = std::make_unique<ClipTracker>(o.matcher, o.tracker, matching, width, height,
                                               expected > 0 ? static_cast<int>(expected) : 1024);

@@ -99,7 +99,8 @@ void addMatcherOptions(CommandLine& cl, std::string& matcher_text,
             "lk = pyramidal Lucas-Kanade frame to frame (video); descriptors = oriented BRIEF "
             "matched against the previous frames, verified, chained (key frames); auto (default) "
             "= LK unless fewer than 35 % of its tracks survive from frame to frame over the "
-            "first 5 frames",
+            "first 16 frames, or a pair after the first keeps fewer than 30 % (a cut in the "
+            "file order)",
             &matcher_text);
   cl.integer("match-features", "N", "descriptor matcher: keypoints per frame (default 2000)",
              &matching.features.max_features, 50, 100000);

@@ -239,7 +239,7 @@ TEST_CASE("epitrack-device stops cleanly on SIGINT and SIGTERM", "[device][cli]"
   }
 }
 
-TEST_CASE("epitrack-device --record writes the frames; replaying them gives the same poses",
+TEST_CASE("epitrack-device --record writes the frames: replaying them gives the same poses",
           "[device][cli]") {
   const std::string& clip = smallClip();
   TempDir dir("device-rec");

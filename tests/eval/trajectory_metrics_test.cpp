@@ -105,7 +105,7 @@ TEST_CASE("A hand-checked zig-zag error gives the ATE it should", "[eval]") {
   REQUIRE(m.rpe_trans_rel == Approx(b * (14.0 / 3.0) / length).epsilon(1e-3));
 }
 
-TEST_CASE("Association is by frame index; missing frames are skipped", "[eval]") {
+TEST_CASE("Association is by frame index: missing frames are skipped", "[eval]") {
   auto gt = lineTrajectory(10);
   for (auto& e : gt) e.position.y() = 0.1 * e.t * e.t;
   std::vector<TrajectoryEntry> est;

@@ -201,7 +201,7 @@ TEST_CASE("MJPEG replays JPEG frames within the codec's error", "[hal][replay][m
   REQUIRE(src->next(f) == hal::FrameStatus::kEndOfStream);
 }
 
-TEST_CASE("MJPEG: a damaged frame is corrupt and replay goes on; a cut file ends cleanly",
+TEST_CASE("MJPEG: a damaged frame is corrupt and replay goes on: a cut file ends cleanly",
           "[hal][replay][mjpeg]") {
   const auto frames = epitrack::test::syntheticFrames(64, 48, 4);
   std::vector<std::size_t> offsets;

@@ -271,7 +271,7 @@ TEST_CASE("Hidden faces are not drawn and depth order is respected", "[render]")
   }
 }
 
-TEST_CASE("Objects behind the camera draw nothing; objects through the near plane are clipped",
+TEST_CASE("Objects behind the camera draw nothing: objects through the near plane are clipped",
           "[render]") {
   const CameraIntrinsics k = CameraIntrinsics::centered(160, 120, 150.0);
   const Eigen::Isometry3d T_wc = lookAt({0.0, 0.0, 1.0}, {0.0, 5.0, 1.0});  // looking along +y

@@ -130,7 +130,7 @@ TEST_CASE("Epipolar filter: noisier tracks without outliers lose nothing", "[tra
   }
 }
 
-TEST_CASE("Epipolar filter: one glitch does not reject a track; two checks in a row do",
+TEST_CASE("Epipolar filter: one glitch does not reject a track: two checks in a row do",
           "[tracker][epipolar]") {
   const EpipolarScene scene = makeEpipolarScene(EpipolarSceneKind::kOrbit, 0, 4);
   // A 4 px jump in one frame: beyond the threshold in one check only.
@@ -143,7 +143,7 @@ TEST_CASE("Epipolar filter: one glitch does not reject a track; two checks in a 
 }
 
 TEST_CASE(
-    "Epipolar filter: no check without enough shared tracks; the oldest frame without "
+    "Epipolar filter: no check without enough shared tracks: the oldest frame without "
     "displacement",
     "[tracker][epipolar]") {
   const EpipolarScene few = makeEpipolarScene(EpipolarSceneKind::kOrbit, 0, 6, 20, 30);

@@ -122,7 +122,7 @@ TEST_CASE("The epipolar check on the orbit and the occlusion clip with noise sig
   compareOnOff("occlusion sigma 1", clip, false);
 }
 
-TEST_CASE("epitrack-track --frame-stats has the epipolar column; --epipolar turns the check on",
+TEST_CASE("epitrack-track --frame-stats has the epipolar column: --epipolar turns the check on",
           "[tracker][epipolar][command]") {
   epitrack::test::TempDir dir("track-epipolar");
   const std::string synth = epitrack::test::binaryPath("tools/synth/epitrack-synth");

@@ -431,6 +431,14 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
   if (L.traj) {
     // Each point's entries: the distinct free slots its observations touch (their cameras and
     // those cameras' neighbours), sorted; each observation's three entries (-1: none or fixed).
+    // touchedSlot(i, j): the free slot of observation i's previous (j = 0), own (1) or next (2)
+    // camera, -1 when there is none or it is fixed.
+    const auto touchedSlot = [&](int i, int j) {
+      const int cam = observations[static_cast<std::size_t>(i)].camera;
+      const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(cam)];
+      const int touched = j == 0 ? nb.previous : (j == 1 ? cam : nb.next);
+      return touched < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched)];
+    };
     for (int p = 0; p < np; ++p) {
       const int begin = 3 * point_obs_offset_[static_cast<std::size_t>(p)];
       pair_begin_[static_cast<std::size_t>(p)] = begin;
@@ -438,14 +446,8 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
       for (int a = point_obs_offset_[static_cast<std::size_t>(p)];
            a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
         const int i = point_obs_index_[static_cast<std::size_t>(a)];
-        const int cam = observations[static_cast<std::size_t>(i)].camera;
-        const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(cam)];
-        const int touched[3] = {nb.previous, cam, nb.next};
         for (int j = 0; j < 3; ++j) {
-          int& entry = obs_entry_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
-          entry = -1;
-          if (touched[j] < 0) continue;
-          const int slot = camera_slot_[static_cast<std::size_t>(touched[j])];
+          const int slot = touchedSlot(i, j);
           if (slot < 0) continue;
           int e = begin;
           while (e < end && pair_slot_[static_cast<std::size_t>(e)] < slot) ++e;
@@ -462,14 +464,10 @@ BundleAdjuster::Layout BundleAdjuster::buildLayout(std::span<const uint8_t> came
       for (int a = point_obs_offset_[static_cast<std::size_t>(p)];
            a < point_obs_offset_[static_cast<std::size_t>(p) + 1]; ++a) {
         const int i = point_obs_index_[static_cast<std::size_t>(a)];
-        const int cam = observations[static_cast<std::size_t>(i)].camera;
-        const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(cam)];
-        const int touched[3] = {nb.previous, cam, nb.next};
         for (int j = 0; j < 3; ++j) {
           int& entry = obs_entry_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
           entry = -1;
-          if (touched[j] < 0) continue;
-          const int slot = camera_slot_[static_cast<std::size_t>(touched[j])];
+          const int slot = touchedSlot(i, j);
           if (slot < 0) continue;
           for (int e = begin; e < end; ++e)
             if (pair_slot_[static_cast<std::size_t>(e)] == slot) entry = e;

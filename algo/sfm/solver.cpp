@@ -396,36 +396,27 @@ bool Solver::initialize() {
   std::vector<Eigen::Vector2d> x1, x2;
   const int a_span = options_.keyframe_collection ? -1 : std::max(1, n / 5);
   const int a_step = std::max(1, a_span / 6);
-  if (options_.keyframe_collection) {
-    initialCandidatesAll([&](int a, int b) {
-      double score = 0.0;
-      PoseCw pose;
-      if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
-        best_score = score;
-        best_pose = pose;
-        best_tracks = tr;
-        best_X = X;
-        init_a_ = a;
-        init_b_ = b;
-      }
-    });
-  }
+  // A candidate pair: kept when it scores above the best so far.
+  const auto tryCandidate = [&](int a, int b) {
+    double score = 0.0;
+    PoseCw pose;
+    if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
+      best_score = score;
+      best_pose = pose;
+      best_tracks = tr;
+      best_X = X;
+      init_a_ = a;
+      init_b_ = b;
+    }
+  };
+  if (options_.keyframe_collection) initialCandidatesAll(tryCandidate);
   for (int a = 0; a < n && a <= a_span; a += a_step) {
     const double targets[] = {0.04, 0.08, 0.14, 0.24};
     int t = 0, last_tried = -1, widest = -1;
     double widest_d = 0.0;
     const auto consider = [&](int b) {
       last_tried = b;
-      double score = 0.0;
-      PoseCw pose;
-      if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
-        best_score = score;
-        best_pose = pose;
-        best_tracks = tr;
-        best_X = X;
-        init_a_ = a;
-        init_b_ = b;
-      }
+      tryCandidate(a, b);
     };
     for (int b = a + 1; b < n && t < 4; ++b) {
       const int c = commonTracks(a, b, &x1, &x2);
@@ -451,7 +442,7 @@ bool Solver::initialize() {
   if (best_score <= 0.0 && rotation_coherent) {
     const RotationCheck rotation = checkRotationModel();
     if (rotation.holds) {
-      if (!tripodSolve()) {  // its result was ignored: a failed tripod solve stayed "ok"
+      if (!tripodSolve()) {  // a failed tripod solve is a failed start, never "ok"
         status_ = Status::kInitFailed;
         message_ =
             "the frames are related by rotations, but the tripod solve found no focal or no "
@@ -463,18 +454,7 @@ bool Solver::initialize() {
     for (int a = 0; a + 1 < n; a += wide_step) {
       const int b = farthestPartner(a, kRotationWindowTracks);
       if (b < a + 2) continue;
-      for (const int partner : {b, (a + b + 1) / 2}) {
-        double score = 0.0;
-        PoseCw pose;
-        if (tryPair(a, partner, score, pose, tr, X) && score > best_score) {
-          best_score = score;
-          best_pose = pose;
-          best_tracks = tr;
-          best_X = X;
-          init_a_ = a;
-          init_b_ = partner;
-        }
-      }
+      for (const int partner : {b, (a + b + 1) / 2}) tryCandidate(a, partner);
     }
     if (best_score <= 0.0) {
       char text[320];

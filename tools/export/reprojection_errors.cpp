@@ -6,6 +6,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "algo/geometry/rolling_shutter.hpp"
+
 namespace epitrack::io {
 
 bool projectPoint(const CameraIntrinsics& k, const SolvedCamera& camera, const Eigen::Vector3d& X,
@@ -18,6 +20,24 @@ bool projectPoint(const CameraIntrinsics& k, const SolvedCamera& camera, const E
   const double d = 1.0 + k.k1 * r2 + k.k2 * r2 * r2;
   pixel = Eigen::Vector2d(k.fx * u * d + k.cx, k.fy * v * d + k.cy);
   return pixel.allFinite();
+}
+
+bool projectPoint(const Reconstruction& rec, const SolvedCamera& camera, const Eigen::Vector3d& X,
+                  Eigen::Vector2d& pixel) {
+  if (!(rec.readout_frames > 0.0)) return projectPoint(rec.intrinsics, camera, X, pixel);
+  // Rolling shutter: the point is seen on the row whose pose sees it there (issue 27); the
+  // camera's pose is the reference row's, its motion over the readout rs_angular / rs_linear.
+  const RollingShutter shutter = RollingShutter::fromReadout(
+      rec.readout_frames, rec.intrinsics.height, rec.readout_reference_row);
+  PoseCw pose;
+  pose.R_cw = camera.R_wc.transpose();
+  pose.t_cw = -pose.R_cw * camera.p_wc;
+  RollingShutterMotion motion;
+  motion.angular = camera.rs_angular;
+  motion.linear = camera.rs_linear;
+  const RollingShutterPixel seen = projectRollingShutter(rec.intrinsics, shutter, pose, motion, X);
+  pixel = seen.px;
+  return seen.status == RollingShutterProjection::kOk && pixel.allFinite();
 }
 
 void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
@@ -42,8 +62,8 @@ void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
     const auto pt = point_of_id.find(o.point_id);
     if (cam == camera_of_frame.end() || pt == point_of_id.end()) continue;
     Eigen::Vector2d pixel;
-    if (!projectPoint(rec.intrinsics, rec.cameras[cam->second], rec.points[pt->second].X, pixel)) {
-      o.outlier = true;  // behind the camera: no residual, and no place in a track
+    if (!projectPoint(rec, rec.cameras[cam->second], rec.points[pt->second].X, pixel)) {
+      o.outlier = true;  // behind the camera (or no row sees it): no residual, no place in a track
       continue;
     }
     o.residual_px = (pixel - Eigen::Vector2d(o.x, o.y)).norm();

@@ -75,6 +75,8 @@ const char* toString(FocalFallback f) {
       return "";
     case FocalFallback::kProfile:
       return "profile";
+    case FocalFallback::kConverged:
+      return "converged";
     case FocalFallback::kProfileFlat:
       return "profile-flat";
     case FocalFallback::kFieldOfView:

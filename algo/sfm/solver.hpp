@@ -188,8 +188,10 @@ enum class FocalSource { kGiven, kSelfCalibrated, kFallback };
 const char* toString(FocalSource s);
 
 /// How a fallback focal was chosen: "" (none), "profile" (a clear minimum of the focal profile),
-/// "profile-flat" (the profile's best, no clear minimum), "field-of-view" (fallback_focal_widths).
-enum class FocalFallback { kNone, kProfile, kProfileFlat, kFieldOfView };
+/// "converged" (no clear minimum, but the profile's refined solves from starts far apart ended on
+/// one focal: the whole adjustment observes it), "profile-flat" (the profile's best, no clear
+/// minimum: a guess), "field-of-view" (fallback_focal_widths).
+enum class FocalFallback { kNone, kProfile, kConverged, kProfileFlat, kFieldOfView };
 const char* toString(FocalFallback f);
 
 /// The solve's figures (Ceres-style Summary): status, intrinsics in use, where the focal came

@@ -438,6 +438,14 @@ void markInterrupted(SolveRun& run) {
 }
 
 // The one-line result on stderr (no nan in what a user reads).
+// What the result line says of a fallback focal (summary.json focal_fallback).
+const char* fallbackNote(const std::string& fallback) {
+  if (fallback == "profile") return ", from the reprojection profile";
+  if (fallback == "converged") return ", the profile's refined solves converged on it";
+  if (fallback == "profile-flat") return ", profile flat: a guess";
+  return "";
+}
+
 void printResult(const SolveRun& run, const Solver& solver) {
   const auto& rec = run.rec;
   const auto& summary = run.summary;
@@ -461,10 +469,8 @@ void printResult(const SolveRun& run, const Solver& solver) {
                 rec.status.c_str(), solver.solvedFrames(), frames, focal_text,
                 rec.focal_source.c_str(), refined_from,
                 rec.focal_observable ? "" : ", not observable from F",
-                rec.focal_fallback == "profile"
-                    ? ", from the reprojection profile"
-                    : (rec.focal_fallback == "profile-flat" ? ", profile flat: a guess" : ""),
-                rec.points.size(), reprojection, rec.seconds.total, run.o.out_dir.c_str());
+                fallbackNote(rec.focal_fallback), rec.points.size(), reprojection,
+                rec.seconds.total, run.o.out_dir.c_str());
   if (run.o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
 }

@@ -195,6 +195,9 @@ const std::map<std::string, Key>& keyTable() {
     t["redetect_fraction"] =
         realKey("detect new features when fewer than this fraction of `features` are tracked", 0.0,
                 1.0, [](C& c) -> double& { return c.tracker.redetect_fraction; });
+    t["redetect_cells"] = intKey(
+        "re-detect only in the grid cells (about this many) that lost tracks (0: the whole frame)",
+        0, 10000, [](C& c) -> int& { return c.tracker.redetect_cells; });
     t["min_distance"] = realKey("minimum distance between features, px", 1.0, 200.0,
                                 [](C& c) -> double& { return c.tracker.min_distance; });
     t["max_points"] =

@@ -73,22 +73,20 @@ ShiTomasiDetector::ShiTomasiDetector(const ShiTomasiOptions& options, int width,
   grid_.configure(std::max(width, 1), std::max(height, 1), options_.min_distance);
 }
 
-void ShiTomasiDetector::computeResponse(ImageView<const uint8_t> image) {
-  scharrGradients(image, dx_.view(), dy_.view());
+void ShiTomasiDetector::computeResponse(const PixelRect& rect) {
 #if EPITRACK_LK_SIMD
   if (options_.vector_kernels) {
-    computeResponseVector();
+    computeResponseVector(rect);
     return;
   }
 #endif
-  computeResponseScalar();
+  computeResponseScalar(rect);
 }
 
-void ShiTomasiDetector::computeResponseScalar() {
+void ShiTomasiDetector::computeResponseScalar(const PixelRect& rect) {
   const int w = width_;
   const int r = options_.block_radius;
   const int rows = 2 * r + 1;
-  const int b = options_.border - 1;  // the response is needed one pixel inside the border for NMS
   // Horizontal block sums of the products gx^2, gx*gy, gy^2 of one row into ring slot `slot`.
   // |g| <= 4080: a product <= 16.6e6, a (2r+1)^2 <= 49 sum <= 8.2e8 < 2^31.
   const auto horizontalSums = [&](int y, int slot) {
@@ -97,7 +95,7 @@ void ShiTomasiDetector::computeResponseScalar() {
     int32_t* sxx = row_sums_.data() + static_cast<std::ptrdiff_t>(3 * slot) * w;
     int32_t* sxy = sxx + w;
     int32_t* syy = sxy + w;
-    for (int x = b; x < w - b; ++x) {
+    for (int x = rect.x0; x < rect.x1; ++x) {
       int32_t axx = 0, axy = 0, ayy = 0;
       for (int k = -r; k <= r; ++k) {
         const int32_t ux = gx[x + k];
@@ -112,11 +110,11 @@ void ShiTomasiDetector::computeResponseScalar() {
     }
   };
   float max_response = 0.0f;
-  for (int y = b - r; y < b + r; ++y) horizontalSums(y, y % rows);
-  for (int y = b; y < height_ - b; ++y) {
+  for (int y = rect.y0 - r; y < rect.y0 + r; ++y) horizontalSums(y, y % rows);
+  for (int y = rect.y0; y < rect.y1; ++y) {
     horizontalSums(y + r, (y + r) % rows);
     float* out = response_.row(y);
-    for (int x = b; x < w - b; ++x) {
+    for (int x = rect.x0; x < rect.x1; ++x) {
       int32_t a = 0, c = 0, d = 0;
       for (int k = 0; k < rows; ++k) {
         const int32_t* s = row_sums_.data() + static_cast<std::ptrdiff_t>(3 * k) * w;
@@ -134,27 +132,26 @@ void ShiTomasiDetector::computeResponseScalar() {
       max_response = std::max(max_response, lambda);
     }
   }
-  max_response_ = max_response;
+  max_response_ = std::max(max_response_, max_response);
 }
 
 #if EPITRACK_LK_SIMD
 
-void ShiTomasiDetector::computeResponseVector() {
+void ShiTomasiDetector::computeResponseVector(const PixelRect& rect) {
   using namespace simd;
   const int w = width_;
   const int r = options_.block_radius;
   const int rows = 2 * r + 1;
-  const int b = options_.border - 1;  // as computeResponseScalar
   int32_t* pxx = products_.data();
   int32_t* pxy = pxx + w;
   int32_t* pyy = pxy + w;
-  // The products of row y over columns [b - r, w - b + r), then their horizontal block sums over
-  // [b, w - b) into ring slot `slot` (the same integers as the scalar pass).
+  // The products of row y over columns [x0 - r, x1 + r), then their horizontal block sums over
+  // [x0, x1) into ring slot `slot` (the same integers as the scalar pass).
   const auto horizontalSums = [&](int y, int slot) {
     const int16_t* gx = dx_.row(y);
     const int16_t* gy = dy_.row(y);
-    const int x_end = w - b + r;
-    int x = b - r;
+    const int x_end = rect.x1 + r;
+    int x = rect.x0 - r;
     for (; x + 8 <= x_end; x += 8) {
       const I16x8 ux = loadI16(gx + x);
       const I16x8 uy = loadI16(gy + x);
@@ -177,8 +174,8 @@ void ShiTomasiDetector::computeResponseVector() {
     int32_t* sxx = row_sums_.data() + static_cast<std::ptrdiff_t>(3 * slot) * w;
     int32_t* sxy = sxx + w;
     int32_t* syy = sxy + w;
-    x = b;
-    for (; x + 4 <= w - b; x += 4) {
+    x = rect.x0;
+    for (; x + 4 <= rect.x1; x += 4) {
       I32x4 axx = zero32(), axy = zero32(), ayy = zero32();
       for (int k = -r; k <= r; ++k) {
         axx = add32(axx, loadI32(pxx + x + k));
@@ -189,7 +186,7 @@ void ShiTomasiDetector::computeResponseVector() {
       store32(sxy + x, axy);
       store32(syy + x, ayy);
     }
-    for (; x < w - b; ++x) {
+    for (; x < rect.x1; ++x) {
       int32_t axx = 0, axy = 0, ayy = 0;
       for (int k = -r; k <= r; ++k) {
         axx += pxx[x + k];
@@ -206,12 +203,12 @@ void ShiTomasiDetector::computeResponseVector() {
   const F32x4 four = setF32(4.0f);
   F32x4 max4 = setF32(0.0f);
   float max_response = 0.0f;
-  for (int y = b - r; y < b + r; ++y) horizontalSums(y, y % rows);
-  for (int y = b; y < height_ - b; ++y) {
+  for (int y = rect.y0 - r; y < rect.y0 + r; ++y) horizontalSums(y, y % rows);
+  for (int y = rect.y0; y < rect.y1; ++y) {
     horizontalSums(y + r, (y + r) % rows);
     float* out = response_.row(y);
-    int x = b;
-    for (; x + 4 <= w - b; x += 4) {
+    int x = rect.x0;
+    for (; x + 4 <= rect.x1; x += 4) {
       I32x4 a = zero32(), c = zero32(), d = zero32();
       for (int k = 0; k < rows; ++k) {
         const int32_t* s = row_sums_.data() + static_cast<std::ptrdiff_t>(3 * k) * w + x;
@@ -226,7 +223,7 @@ void ShiTomasiDetector::computeResponseVector() {
       storeF32(out + x, lambda);
       max4 = maxF32(max4, lambda);
     }
-    for (; x < w - b; ++x) {
+    for (; x < rect.x1; ++x) {
       int32_t a = 0, c = 0, d = 0;
       for (int k = 0; k < rows; ++k) {
         const int32_t* s = row_sums_.data() + static_cast<std::ptrdiff_t>(3 * k) * w;
@@ -243,12 +240,14 @@ void ShiTomasiDetector::computeResponseVector() {
       max_response = std::max(max_response, lambda);
     }
   }
-  max_response_ = std::max(max_response, maxLaneF32(max4));
+  max_response_ = std::max(max_response_, std::max(max_response, maxLaneF32(max4)));
 }
 
 #else
 
-void ShiTomasiDetector::computeResponseVector() { computeResponseScalar(); }
+void ShiTomasiDetector::computeResponseVector(const PixelRect& rect) {
+  computeResponseScalar(rect);
+}
 
 #endif
 
@@ -272,8 +271,8 @@ std::size_t ShiTomasiDetector::rowMaximaScalar(int y, int x0, int x1, float floo
   return n;
 }
 
-std::size_t ShiTomasiDetector::rowMaximaVector(int y, int b, float floor_response, const uint8_t* m,
-                                               std::size_t n) {
+std::size_t ShiTomasiDetector::rowMaximaVector(int y, int x0, int x1, float floor_response,
+                                               const uint8_t* m, std::size_t n) {
 #if EPITRACK_LK_SIMD
   using namespace simd;
   const float* r0 = response_.row(y - 1);
@@ -281,9 +280,9 @@ std::size_t ShiTomasiDetector::rowMaximaVector(int y, int b, float floor_respons
   const float* r2 = response_.row(y + 1);
   Corner* cand = candidates_.data();
   const F32x4 floor4 = setF32(floor_response);
-  int x = b;
+  int x = x0;
   // Strict 3x3 maxima, ties broken towards the first in raster order (as rowMaximaScalar).
-  for (; x + 4 <= width_ - b; x += 4) {
+  for (; x + 4 <= x1; x += 4) {
     const F32x4 v = loadF32(r1 + x);
     int bits = maskGtF32(v, floor4) & maskGeF32(v, loadF32(r0 + x - 1)) &
                maskGeF32(v, loadF32(r0 + x)) & maskGeF32(v, loadF32(r0 + x + 1)) &
@@ -298,9 +297,9 @@ std::size_t ShiTomasiDetector::rowMaximaVector(int y, int b, float floor_respons
         cand[n++] = Corner{static_cast<float>(xi), static_cast<float>(y), r1[xi]};
     }
   }
-  return rowMaximaScalar(y, x, width_ - b, floor_response, m, n);
+  return rowMaximaScalar(y, x, x1, floor_response, m, n);
 #else
-  return rowMaximaScalar(y, b, width_ - b, floor_response, m, n);
+  return rowMaximaScalar(y, x0, x1, floor_response, m, n);
 #endif
 }
 
@@ -352,29 +351,31 @@ void ShiTomasiDetector::refine(float& x, float& y) const {
   y = cy;
 }
 
-ShiTomasiDetector::Status ShiTomasiDetector::detect(ImageView<const uint8_t> image,
-                                                    std::span<const Point2f> existing,
-                                                    ImageView<const uint8_t> mask, int wanted,
-                                                    std::span<Corner> out, int& found) {
-  found = 0;
-  if (width_ <= 0 || height_ <= 0) return Status::kNotConfigured;
-  if (image.width != width_ || image.height != height_) return Status::kSizeMismatch;
-  if (!mask.empty() && !sameSize(mask, image)) return Status::kSizeMismatch;
+PixelRect ShiTomasiDetector::clipToCornerArea(const PixelRect& r) const {
   const int b = options_.border;
-  if (2 * b + 2 >= width_ || 2 * b + 2 >= height_) return Status::kOk;
-  computeResponse(image);
-  const int limit = std::min({wanted, static_cast<int>(out.size()), options_.max_features});
-  if (limit <= 0 || max_response_ <= 0.0f) return Status::kOk;
+  PixelRect c{std::max(r.x0, b), std::max(r.y0, b), std::min(r.x1, width_ - b),
+              std::min(r.y1, height_ - b)};
+  if (c.x1 <= c.x0 || c.y1 <= c.y0) c = PixelRect{};
+  return c;
+}
 
-  // Candidates: 3x3 local maxima above the floor (ties broken towards the first in raster order).
-  const float floor_response = static_cast<float>(options_.min_quality) * max_response_;
-  std::size_t n = 0;
-  Corner* cand = candidates_.data();
-  for (int y = b; y < height_ - b; ++y) {
+std::size_t ShiTomasiDetector::collectMaxima(const PixelRect& r, float floor_response,
+                                             ImageView<const uint8_t> mask, std::size_t n) {
+  for (int y = r.y0; y < r.y1; ++y) {
     const uint8_t* m = mask.empty() ? nullptr : mask.row(y);
-    n = options_.vector_kernels ? rowMaximaVector(y, b, floor_response, m, n)
-                                : rowMaximaScalar(y, b, width_ - b, floor_response, m, n);
+    n = options_.vector_kernels ? rowMaximaVector(y, r.x0, r.x1, floor_response, m, n)
+                                : rowMaximaScalar(y, r.x0, r.x1, floor_response, m, n);
   }
+  return n;
+}
+
+void ShiTomasiDetector::resetGrid(std::span<const Point2f> existing) {
+  grid_.clear();
+  for (const Point2f& p : existing) grid_.insert(p.x, p.y);
+  last_quality_ = 0.0;
+}
+
+void ShiTomasiDetector::selectCorners(std::size_t n, int limit, std::span<Corner> out, int& found) {
   // Strongest first (then raster order: a strict order, so the same sequence as a full sort),
   // from a heap: usually only a few hundred of the candidates are looked at.
   const auto after = [](const Corner& a, const Corner& c) {
@@ -382,11 +383,8 @@ ShiTomasiDetector::Status ShiTomasiDetector::detect(ImageView<const uint8_t> ima
     if (a.y != c.y) return a.y > c.y;
     return a.x > c.x;
   };
+  Corner* cand = candidates_.data();
   std::make_heap(cand, cand + n, after);
-
-  grid_.clear();
-  for (const Point2f& p : existing) grid_.insert(p.x, p.y);
-  last_quality_ = 0.0;
   for (std::size_t left = n; left > 0 && found < limit; --left) {
     std::pop_heap(cand, cand + left, after);
     const Corner c = cand[left - 1];
@@ -396,6 +394,78 @@ ShiTomasiDetector::Status ShiTomasiDetector::detect(ImageView<const uint8_t> ima
     if (options_.subpixel) refine(refined.x, refined.y);
     out[static_cast<std::size_t>(found++)] = refined;
     last_quality_ = static_cast<double>(c.response / max_response_);
+  }
+}
+
+ShiTomasiDetector::Status ShiTomasiDetector::checkInput(ImageView<const uint8_t> image,
+                                                        ImageView<const uint8_t> mask,
+                                                        bool& too_small) const {
+  if (width_ <= 0 || height_ <= 0) return Status::kNotConfigured;
+  if (image.width != width_ || image.height != height_) return Status::kSizeMismatch;
+  if (!mask.empty() && !sameSize(mask, image)) return Status::kSizeMismatch;
+  const int b = options_.border;
+  too_small = 2 * b + 2 >= width_ || 2 * b + 2 >= height_;  // no corner area: nothing to find
+  return Status::kOk;
+}
+
+ShiTomasiDetector::Status ShiTomasiDetector::detect(ImageView<const uint8_t> image,
+                                                    std::span<const Point2f> existing,
+                                                    ImageView<const uint8_t> mask, int wanted,
+                                                    std::span<Corner> out, int& found) {
+  found = 0;
+  bool too_small = false;
+  if (const Status st = checkInput(image, mask, too_small); st != Status::kOk || too_small)
+    return st;
+  const int b = options_.border;
+  scharrGradients(image, dx_.view(), dy_.view());
+  max_response_ = 0.0f;
+  // The response is needed one pixel beyond the corner area for the 3x3 maxima.
+  const PixelRect corners{b, b, width_ - b, height_ - b};
+  computeResponse(PixelRect{b - 1, b - 1, width_ - b + 1, height_ - b + 1});
+  const int limit = std::min({wanted, static_cast<int>(out.size()), options_.max_features});
+  if (limit <= 0 || max_response_ <= 0.0f) return Status::kOk;
+  const float floor_response = static_cast<float>(options_.min_quality) * max_response_;
+  resetGrid(existing);
+  selectCorners(collectMaxima(corners, floor_response, mask, 0), limit, out, found);
+  return Status::kOk;
+}
+
+ShiTomasiDetector::Status ShiTomasiDetector::detectInRegions(
+    ImageView<const uint8_t> image, std::span<const Point2f> existing,
+    ImageView<const uint8_t> mask, std::span<const DetectionRegion> regions, int wanted,
+    std::span<Corner> out, int& found) {
+  found = 0;
+  bool too_small = false;
+  if (const Status st = checkInput(image, mask, too_small); st != Status::kOk || too_small)
+    return st;
+  // The gradients a corner of a region depends on: its block sums and 3x3 maximum (block_radius
+  // + 1 around it) and its refinement (subpixel_radius around a centre that moves at most 3 px,
+  // see refine). The border keeps all of it inside the image.
+  const int margin = std::max(options_.block_radius + 1, options_.subpixel_radius + 3);
+  max_response_ = 0.0f;
+  for (const DetectionRegion& region : regions) {
+    const PixelRect r = clipToCornerArea(region.area);
+    if (r.x1 == r.x0) continue;
+    scharrGradientsRegion(image, dx_.view(), dy_.view(), r.x0 - margin, r.y0 - margin,
+                          r.x1 + margin, r.y1 + margin);
+    computeResponse(PixelRect{r.x0 - 1, r.y0 - 1, r.x1 + 1, r.y1 + 1});
+  }
+  const int limit = std::min({wanted, static_cast<int>(out.size()), options_.max_features});
+  if (limit <= 0 || max_response_ <= 0.0f) return Status::kOk;
+  const float floor_response = static_cast<float>(options_.min_quality) * max_response_;
+  resetGrid(existing);
+  // Regions without a cap of their own compete for the call's budget, strongest first.
+  std::size_t n = 0;
+  for (const DetectionRegion& region : regions) {
+    const PixelRect r = clipToCornerArea(region.area);
+    if (r.x1 > r.x0 && region.wanted < 0) n = collectMaxima(r, floor_response, mask, n);
+  }
+  selectCorners(n, limit, out, found);
+  for (const DetectionRegion& region : regions) {
+    const PixelRect r = clipToCornerArea(region.area);
+    if (r.x1 == r.x0 || region.wanted <= 0) continue;
+    selectCorners(collectMaxima(r, floor_response, mask, 0), std::min(limit, found + region.wanted),
+                  out, found);
   }
   return Status::kOk;
 }

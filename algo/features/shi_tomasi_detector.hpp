@@ -16,6 +16,20 @@ struct Corner {
   float response = 0.0f;  ///< minimum eigenvalue of the structure tensor (Scharr units)
 };
 
+/// A half-open pixel rectangle [x0, x1) x [y0, y1).
+struct PixelRect {
+  int x0 = 0;
+  int y0 = 0;
+  int x1 = 0;
+  int y1 = 0;
+};
+
+/// Where detectInRegions looks, and how many corners it may take there at most.
+struct DetectionRegion {
+  PixelRect area;
+  int wanted = 0;  ///< at most this many corners here; < 0: no cap, the call's budget is shared
+};
+
 /// A 2-D point (an existing feature the detector must keep away from).
 struct Point2f {
   float x = 0.0f;
@@ -83,6 +97,17 @@ class ShiTomasiDetector {
   Status detect(ImageView<const uint8_t> image, std::span<const Point2f> existing,
                 ImageView<const uint8_t> mask, int wanted, std::span<Corner> out, int& found);
 
+  /// As `detect`, but corners only inside the regions' areas (candidate positions; clipped to the
+  /// border), at most each region's `wanted` there (strongest first, region by region, all kept
+  /// min_distance apart; regions without a cap first, together, strongest first): the gradients and
+  /// the response are computed over those rectangles and the margins the block sums, the 3x3 maxima
+  /// and the sub-pixel refinement read, nothing else. Inside a region the responses equal
+  /// `detect`'s; the adaptive threshold is relative to the strongest response in the regions. The
+  /// tracker re-detects so in the cells that lost tracks.
+  Status detectInRegions(ImageView<const uint8_t> image, std::span<const Point2f> existing,
+                         ImageView<const uint8_t> mask, std::span<const DetectionRegion> regions,
+                         int wanted, std::span<Corner> out, int& found);
+
   /// The relative threshold reached by the last call (response of the weakest accepted corner
   /// divided by the strongest response in the image).
   [[nodiscard]] double lastQuality() const { return last_quality_; }
@@ -93,16 +118,30 @@ class ShiTomasiDetector {
   void refine(float& x, float& y) const;
 
  private:
-  void computeResponse(ImageView<const uint8_t> image);
-  void computeResponseScalar();
-  void computeResponseVector();
-  /// 3x3 local maxima of the response above `floor_response` on row y, columns [x0, x1) (the
-  /// vector variant: [b, width - b)), appended to the n candidates in increasing x; returns the
-  /// new count.
+  /// The response over `r` (gradients there and r.block_radius around must be current); raises
+  /// max_response_ to the largest response in `r`.
+  void computeResponse(const PixelRect& r);
+  void computeResponseScalar(const PixelRect& r);
+  void computeResponseVector(const PixelRect& r);
+  /// 3x3 local maxima of the response above `floor_response` on row y, columns [x0, x1),
+  /// appended to the n candidates in increasing x; returns the new count.
   std::size_t rowMaximaScalar(int y, int x0, int x1, float floor_response, const uint8_t* mask,
                               std::size_t n);
-  std::size_t rowMaximaVector(int y, int b, float floor_response, const uint8_t* mask,
+  std::size_t rowMaximaVector(int y, int x0, int x1, float floor_response, const uint8_t* mask,
                               std::size_t n);
+  /// Appends the 3x3 maxima of the candidate rectangle `r` (response computed around it).
+  std::size_t collectMaxima(const PixelRect& r, float floor_response, ImageView<const uint8_t> mask,
+                            std::size_t n);
+  /// Accepts the n candidates strongest first while free of the grid's points (inserted), until
+  /// `found` reaches `limit`.
+  void selectCorners(std::size_t n, int limit, std::span<Corner> out, int& found);
+  /// The grid holds `existing` only.
+  void resetGrid(std::span<const Point2f> existing);
+  /// The configuration, image and mask sizes; `too_small`: the image has no corner area.
+  Status checkInput(ImageView<const uint8_t> image, ImageView<const uint8_t> mask,
+                    bool& too_small) const;
+  /// `r` clipped to the rectangle where corners may lie (the border left out); may be empty.
+  [[nodiscard]] PixelRect clipToCornerArea(const PixelRect& r) const;
 
   ShiTomasiOptions options_;
   int width_ = 0;

@@ -1,5 +1,7 @@
 #include "algo/image/scharr.hpp"
 
+#include <algorithm>
+
 #include "algo/flow/simd_int16.hpp"
 #include "algo/image/border.hpp"
 
@@ -43,10 +45,19 @@ void scharrGradientsScalar(ImageView<const uint8_t> src, ImageView<int16_t> dx,
 }
 
 void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageView<int16_t> dy) {
-#if EPITRACK_LK_SIMD
+  scharrGradientsRegion(src, dx, dy, 0, 0, src.width, src.height);
+}
+
+void scharrGradientsRegion(ImageView<const uint8_t> src, ImageView<int16_t> dx,
+                           ImageView<int16_t> dy, int x0, int y0, int x1, int y1) {
   EPITRACK_ASSERT(sameSize(src, dx) && sameSize(src, dy));
   const int w = src.width;
   const int h = src.height;
+  x0 = std::max(x0, 0);
+  y0 = std::max(y0, 0);
+  x1 = std::min(x1, w);
+  y1 = std::min(y1, h);
+#if EPITRACK_LK_SIMD
   if (w < 10) {
     scharrGradientsScalar(src, dx, dy);
     return;
@@ -54,7 +65,7 @@ void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageV
   using namespace simd;
   const I16x8 three = set16(3);
   const I16x8 ten = set16(10);
-  for (int y = 0; y < h; ++y) {
+  for (int y = y0; y < y1; ++y) {
     const uint8_t* up = src.row(reflect101(y - 1, h));
     const uint8_t* mid = src.row(y);
     const uint8_t* down = src.row(reflect101(y + 1, h));
@@ -68,10 +79,10 @@ void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageV
       oy[x] = static_cast<int16_t>(3 * (down[xl] - up[xl]) + 10 * (down[x] - up[x]) +
                                    3 * (down[xr] - up[xr]));
     };
-    at(0);
+    int x = x0;
+    if (x == 0 && x < x1) at(x++);
     // 8 columns per step, reading columns x - 1 .. x + 8 (|sums| <= 16 * 255: int16).
-    int x = 1;
-    for (; x + 9 <= w; x += 8) {
+    for (; x + 8 <= x1 && x + 9 <= w; x += 8) {
       const I16x8 ul = loadWidenU8(up + x - 1), uc = loadWidenU8(up + x),
                   ur = loadWidenU8(up + x + 1);
       const I16x8 ml = loadWidenU8(mid + x - 1), mr = loadWidenU8(mid + x + 1);
@@ -84,9 +95,13 @@ void scharrGradients(ImageView<const uint8_t> src, ImageView<int16_t> dx, ImageV
       storeI16(ox + x, gx);
       storeI16(oy + x, gy);
     }
-    for (; x < w; ++x) at(x);
+    for (; x < x1; ++x) at(x);
   }
 #else
+  (void)x0;
+  (void)y0;
+  (void)x1;
+  (void)y1;
   scharrGradientsScalar(src, dx, dy);
 #endif
 }

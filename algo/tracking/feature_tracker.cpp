@@ -93,9 +93,23 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
   corners_.resize(n);
   output_.resize(n);
   lost_.resize(n);
+  if (options_.redetect_cells > 0 && width > 0 && height > 0) {
+    // Cells about square: cols / rows follows the image's aspect.
+    const double cells = options_.redetect_cells;
+    cell_cols_ =
+        std::clamp(static_cast<int>(std::lround(std::sqrt(cells * width / height))), 1, width);
+    cell_rows_ = std::clamp(static_cast<int>(std::lround(cells / cell_cols_)), 1, height);
+    const int total = cell_cols_ * cell_rows_;
+    cell_share_ = (options_.max_features + total - 1) / total;
+    for (auto* v : {&cell_count_, &cell_held_, &cell_retry_at_})
+      v->assign(static_cast<std::size_t>(total), 0);
+    cell_needy_.assign(static_cast<std::size_t>(total), 0);
+    regions_.resize(static_cast<std::size_t>(total));
+  }
 }
 
-void FeatureTracker::detect(ImageView<const uint8_t> mask) {
+void FeatureTracker::detect(ImageView<const uint8_t> mask,
+                            std::span<const DetectionRegion> regions) {
   int n_live = 0;
   for (const Track& t : tracks_) {
     if (t.live) live_points_[static_cast<std::size_t>(n_live++)] = Point2f{t.x, t.y};
@@ -104,9 +118,13 @@ void FeatureTracker::detect(ImageView<const uint8_t> mask) {
   if (wanted <= 0) return;
   int found = 0;
   const Pyramid& pyramid = pyramids_[current_];
-  detector_.detect(pyramid.level(0),
-                   std::span<const Point2f>(live_points_.data(), static_cast<std::size_t>(n_live)),
-                   mask, wanted, std::span<Corner>(corners_.data(), corners_.size()), found);
+  const std::span<const Point2f> live(live_points_.data(), static_cast<std::size_t>(n_live));
+  const std::span<Corner> out(corners_.data(), corners_.size());
+  if (regions.empty()) {
+    detector_.detect(pyramid.level(0), live, mask, wanted, out, found);
+  } else {
+    detector_.detectInRegions(pyramid.level(0), live, mask, regions, wanted, out, found);
+  }
   std::size_t slot = 0;
   for (int i = 0; i < found; ++i) {
     while (slot < tracks_.size() && tracks_[slot].live) ++slot;
@@ -561,6 +579,101 @@ void FeatureTracker::predictAll() {
   }
 }
 
+void FeatureTracker::redetect(ImageView<const uint8_t> mask) {
+  const bool cells = cell_cols_ > 0;
+  if (frame_index_ == 0) {
+    detect(mask, {});
+    frames_since_detect_ = 0;
+    stats_.detect_cells = cells ? cell_cols_ * cell_rows_ : 1;
+    if (cells) recordSearchedCells(true);
+    return;
+  }
+  if (cells) {
+    redetectInCells(mask);
+    return;
+  }
+  const double target = options_.redetect_fraction * options_.max_features;
+  const bool below = live_count_ < options_.max_features;
+  if (live_count_ < target || (below && options_.redetect_interval > 0 &&
+                               frames_since_detect_ >= options_.redetect_interval)) {
+    detect(mask, {});
+    frames_since_detect_ = 0;
+    stats_.detect_cells = 1;
+  }
+}
+
+void FeatureTracker::countTracksPerCell() {
+  std::fill(cell_count_.begin(), cell_count_.end(), 0);
+  for (const Track& t : tracks_) {
+    if (!t.live) continue;
+    // Integer cell arithmetic: the same cell on every platform.
+    const int cx = std::clamp(static_cast<int>(t.x) * cell_cols_ / width_, 0, cell_cols_ - 1);
+    const int cy = std::clamp(static_cast<int>(t.y) * cell_rows_ / height_, 0, cell_rows_ - 1);
+    ++cell_count_[static_cast<std::size_t>(cy * cell_cols_ + cx)];
+  }
+}
+
+void FeatureTracker::recordSearchedCells(bool all) {
+  countTracksPerCell();
+  for (std::size_t c = 0; c < cell_count_.size(); ++c) {
+    if (!all && cell_needy_[c] == 0) continue;
+    cell_held_[c] = cell_count_[c];
+    // A cell the search could not fill (little texture, or the frame's budget spent elsewhere)
+    // is looked at again after redetect_cell_retry frames, not on every frame.
+    cell_retry_at_[c] = frame_index_ + std::max(options_.redetect_cell_retry, 1);
+  }
+}
+
+int FeatureTracker::needyRegions() {
+  int n = 0;
+  for (int cy = 0; cy < cell_rows_; ++cy) {
+    for (int cx = 0; cx < cell_cols_;) {
+      if (cell_needy_[static_cast<std::size_t>(cy * cell_cols_ + cx)] == 0) {
+        ++cx;
+        continue;
+      }
+      const int first = cx;
+      int deficit = 0;
+      for (; cx < cell_cols_ && cell_needy_[static_cast<std::size_t>(cy * cell_cols_ + cx)] != 0;
+           ++cx) {
+        deficit += cell_share_ - cell_count_[static_cast<std::size_t>(cy * cell_cols_ + cx)];
+      }
+      const PixelRect area{first * width_ / cell_cols_, cy * height_ / cell_rows_,
+                           cx * width_ / cell_cols_, (cy + 1) * height_ / cell_rows_};
+      regions_[static_cast<std::size_t>(n++)] =
+          DetectionRegion{area, options_.redetect_fill_share ? deficit : -1};
+    }
+  }
+  return n;
+}
+
+void FeatureTracker::redetectInCells(ImageView<const uint8_t> mask) {
+  const double target = options_.redetect_fraction * options_.max_features;
+  const bool below = live_count_ < options_.max_features;
+  const bool due = live_count_ < target || (below && options_.redetect_interval > 0 &&
+                                            frames_since_detect_ >= options_.redetect_interval);
+  if (!due) return;
+  countTracksPerCell();
+  int needy = 0;
+  bool emptied = false;
+  for (std::size_t c = 0; c < cell_count_.size(); ++c) {
+    const int count = cell_count_[c];
+    // Below its share and either lost tracks since its last search or due for a retry.
+    const bool wants =
+        count < cell_share_ && (count < cell_held_[c] || frame_index_ >= cell_retry_at_[c]);
+    cell_needy_[c] = wants ? 1 : 0;
+    needy += wants ? 1 : 0;
+    emptied = emptied || (count == 0 && cell_held_[c] > 0);
+  }
+  if (needy == 0 || (frames_since_detect_ < options_.redetect_min_gap && !emptied)) return;
+  const int regions = needyRegions();
+  detect(mask,
+         std::span<const DetectionRegion>(regions_.data(), static_cast<std::size_t>(regions)));
+  frames_since_detect_ = 0;
+  stats_.detect_cells = needy;
+  recordSearchedCells(false);
+}
+
 void FeatureTracker::dropTrack(Track& t, int& counter, TrackLoss reason) {
   ++counter;
   t.live = false;
@@ -670,16 +783,10 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
     if (options_.epipolar_check) epipolarCheck();
   }
   ++frames_since_detect_;
-  const double target = options_.redetect_fraction * options_.max_features;
-  const bool below = live_count_ < options_.max_features;
-  if (frame_index_ == 0 || live_count_ < target ||
-      (below && options_.redetect_interval > 0 &&
-       frames_since_detect_ >= options_.redetect_interval)) {
-    t0 = stageNow();
-    detect(mask);
-    stats_.detect_ms = msSince(t0);
-    frames_since_detect_ = 0;
-  }
+  t0 = stageNow();
+  redetect(mask);
+  // Only a frame that searched has a detection time (the benchmarks count those as calls).
+  stats_.detect_ms = stats_.detect_cells > 0 ? msSince(t0) : 0.0;
 
   publishTracks();
   double cx = 0.5 * width_, cy = 0.5 * height_;

@@ -29,8 +29,20 @@ struct FeatureTrackerOptions {
   double min_distance = 10.0;      ///< between features, px (grid based)
   double redetect_fraction = 0.9;  ///< re-detect when fewer than this fraction of max_features live
   int redetect_interval = 0;       ///< also re-detect every N frames when below target (0: never)
-  double min_quality = 0.001;      ///< floor of the detector's adaptive threshold (relative)
-  bool kalman_gate = true;         ///< reject LK measurements outside the Kalman chi-square gate
+  /// Re-detection by grid cells (docs/tracker.md, "Re-detection"): the image is cut into about
+  /// this many cells, and a re-detection searches only the cells below their share of
+  /// max_features that lost tracks since their last search, or whose retry is due (a cell that
+  /// could not be filled: retried every redetect_cell_retry frames). 0: the whole frame.
+  int redetect_cells = 0;
+  int redetect_cell_retry = 10;
+  /// At least this many frames between two re-detections, unless a cell that held tracks has
+  /// emptied (that is refilled at once). 1: a re-detection may run on every frame.
+  int redetect_min_gap = 1;
+  /// A searched cell takes corners up to its share of max_features only (uniform coverage; the
+  /// strongest corners of the searched cells otherwise, up to max_features in all).
+  bool redetect_fill_share = true;
+  double min_quality = 0.001;  ///< floor of the detector's adaptive threshold (relative)
+  bool kalman_gate = true;     ///< reject LK measurements outside the Kalman chi-square gate
   /// The gate's innovation covariance is widened by (gate_speed_fraction * predicted speed)^2:
   /// real image motion accelerates in proportion to its speed (forward motion, zoom, a hand).
   double gate_speed_fraction = 0.25;
@@ -201,6 +213,7 @@ struct FrameStats {
   int lost_epipolar = 0;  ///< dropped by the epipolar check (not part of lost_lk)
   double epipolar_ms = 0.0;
   int detected = 0;
+  int detect_cells = 0;  ///< grid cells searched by the re-detection (all of them: whole frame)
   int refreshed = 0;
   int forward_backward_checks = 0;
   double residual_median = 0.0;  ///< the frame's typical relative residual (the scale)
@@ -272,7 +285,20 @@ class FeatureTracker {
     KalmanFilterCv kalman;
     Candidate candidate;
   };
-  void detect(ImageView<const uint8_t> mask);
+  /// Detects new tracks away from the live ones: in `regions`, or the whole frame when empty.
+  void detect(ImageView<const uint8_t> mask, std::span<const DetectionRegion> regions);
+  /// This frame's re-detection decision and search (whole frame or grid cells).
+  void redetect(ImageView<const uint8_t> mask);
+  /// The cell policy (redetect_cells > 0): searches the needy cells when due.
+  void redetectInCells(ImageView<const uint8_t> mask);
+  /// Live tracks per grid cell into cell_count_.
+  void countTracksPerCell();
+  /// After a search of the cells flagged in cell_needy_ (all when `all`): their new level and
+  /// the frame of their next retry.
+  void recordSearchedCells(bool all);
+  /// The runs of needy cells of each grid row into regions_, each wanting its cells' deficits
+  /// below their share (no cap with redetect_fill_share off); returns the count.
+  int needyRegions();
   /// The epipolar check over this frame's accepted tracks; drops the ones it rejects.
   void epipolarCheck();
   /// Aligns track `slot` into this frame (its candidate); `young`: seen in one frame only.
@@ -350,6 +376,15 @@ class FeatureTracker {
   int frame_index_ = 0;
   int skipped_frames_ = 0;  ///< frames lost since the last track() call
   int frames_since_detect_ = 0;
+  // The re-detection grid (redetect_cells > 0): cell_cols_ x cell_rows_ cells of the image.
+  int cell_cols_ = 0;
+  int cell_rows_ = 0;
+  int cell_share_ = 0;                    // max_features / cells, rounded up
+  std::vector<int> cell_count_;           // live tracks per cell (this frame)
+  std::vector<int> cell_held_;            // live tracks right after the cell's last search
+  std::vector<int> cell_retry_at_;        // frame from which a cell short of its share is re-tried
+  std::vector<uint8_t> cell_needy_;       // this frame's cells to search
+  std::vector<DetectionRegion> regions_;  // their rectangles (runs of a grid row), deficits
   FrameStats stats_;
 };
 

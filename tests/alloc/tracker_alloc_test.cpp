@@ -32,6 +32,8 @@ TEST_CASE("FeatureTracker allocates nothing per frame after the first two", "[al
 
   FeatureTrackerOptions options;
   options.max_features = 150;
+  // The whole-frame re-detection and the one by grid cells (redetect_cells).
+  options.redetect_cells = GENERATE(0, 48);
   FeatureTracker tracker(options, o.width, o.height);
   REQUIRE(tracker.track(frames[0].constView()) == FeatureTracker::Status::kOk);
   REQUIRE(tracker.track(frames[1].constView()) == FeatureTracker::Status::kOk);

@@ -44,6 +44,7 @@ int runDevice(int argc, const char* const* argv) {
   int warmup = 30;
   double focal = 0.0;
   std::string lk_affine = "true";
+  std::string redetect_fill = "share";
   tools::CommandLine cl(
       "epitrack-bench device",
       "[INPUT --intrinsics FILE] [--size WxH] [--scene orbit|handheld|...] [--features N] "
@@ -71,6 +72,14 @@ int runDevice(int argc, const char* const* argv) {
             &lk_affine);
   cl.real("redetect-fraction", "F", "re-detect below this fraction of features (default 0.9)",
           &to.redetect_fraction, 0.0, 1.0);
+  cl.integer("redetect-cells", "N", "re-detect in grid cells, about N (default 0: whole frame)",
+             &to.redetect_cells, 0, 10000);
+  cl.integer("redetect-min-gap", "N", "frames between re-detections (default 1)",
+             &to.redetect_min_gap, 1, 1000);
+  cl.choice("redetect-fill", {"share", "all"},
+            "with --redetect-cells: a searched cell takes corners up to its share (default) or "
+            "the strongest of the searched cells up to the feature count",
+            &redetect_fill);
   if (const auto r = cl.parse(argc, argv); r != tools::CommandLine::Result::kOk)
     return tools::CommandLine::exitCode(r);
 
@@ -109,6 +118,7 @@ int runDevice(int argc, const char* const* argv) {
   }
   to.max_features = features;
   to.affine = lk_affine == "true";
+  to.redetect_fill_share = redetect_fill == "share";
   LiveMapOptions mo;
   mo.max_features = features;
 
@@ -160,6 +170,7 @@ int runDevice(int argc, const char* const* argv) {
       .add("features", features)
       .add("window", to.window)
       .add("lk_affine", to.affine)
+      .add("redetect_cells", to.redetect_cells)
       .add("width", K.width)
       .add("height", K.height)
       .add("tracking_frames", tracking)

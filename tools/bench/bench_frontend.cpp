@@ -114,6 +114,10 @@ int runFrontend(int argc, const char* const* argv) {
   cl.integer("features", "N", "features (default 300)", &o.max_features, 1, 10000);
   cl.integer("window", "PX", "LK window (default 21)", &o.window, 3, 99);
   cl.integer("levels", "L", "pyramid levels beyond the base (default 3)", &o.levels, 0, 7);
+  cl.integer("redetect-cells", "N", "re-detect in grid cells, about N (default 0: whole frame)",
+             &o.redetect_cells, 0, 10000);
+  cl.integer("redetect-min-gap", "N", "frames between re-detections (default 1)",
+             &o.redetect_min_gap, 1, 1000);
   if (const auto r = cl.parse(argc, argv); r != tools::CommandLine::Result::kOk)
     return tools::CommandLine::exitCode(r);
 

@@ -57,6 +57,14 @@ void addTrackerOptions(CommandLine& cl, FeatureTrackerOptions& o) {
   cl.real("redetect", "FRACTION",
           "re-detect when fewer than this fraction of --features live (default 0.9)",
           &o.redetect_fraction, 0.0, 1.0);
+  cl.integer("redetect-cells", "N",
+             "re-detect only in the grid cells (about N) that lost tracks (default 0: the whole "
+             "frame)",
+             &o.redetect_cells, 0, 10000);
+  cl.integer("redetect-min-gap", "N",
+             "at least N frames between re-detections unless a cell emptied (default 1; with "
+             "--redetect-cells)",
+             &o.redetect_min_gap, 1, 1000);
   cl.real("max-residual", "R",
           "drop a track beyond this relative residual or --residual-scale-max frame medians "
           "(default 0.5)",
@@ -186,18 +194,19 @@ bool outputWritable(const std::string& out) {
 
 /// One line of --frame-stats: the tracker's account of the frame just tracked.
 void printFrameStats(int frame, const epitrack::FrameStats& fs) {
-  std::fprintf(stderr,
-               "frame %d:%s live %d, lost: left-image %d no-convergence %d low-texture %d "
-               "residual %d forward-backward %d gate %d mask %d epipolar %d; fb checks %d, "
-               "refreshed %d, detected %d; residual median %.3f; motion %.1f %.1f inliers %d/%d "
-               "released %d; lk iterations %ld; ms pyramid %.2f lk %.2f epipolar %.2f detect "
-               "%.2f\n",
-               frame, fs.repeated != 0 ? " repeat," : "", fs.tracked, fs.lost_left_image,
-               fs.lost_no_convergence, fs.lost_low_texture, fs.lost_residual,
-               fs.lost_forward_backward, fs.lost_gate, fs.lost_mask, fs.lost_epipolar,
-               fs.forward_backward_checks, fs.refreshed, fs.detected, fs.residual_median,
-               fs.motion_dx, fs.motion_dy, fs.motion_inliers, fs.motion_anchors, fs.gate_released,
-               fs.lk_iterations, fs.pyramid_ms, fs.lk_ms, fs.epipolar_ms, fs.detect_ms);
+  std::fprintf(
+      stderr,
+      "frame %d:%s live %d, lost: left-image %d no-convergence %d low-texture %d "
+      "residual %d forward-backward %d gate %d mask %d epipolar %d; fb checks %d, "
+      "refreshed %d, detected %d in %d cells; residual median %.3f; motion %.1f %.1f inliers %d/%d "
+      "released %d; lk iterations %ld; ms pyramid %.2f lk %.2f epipolar %.2f detect "
+      "%.2f\n",
+      frame, fs.repeated != 0 ? " repeat," : "", fs.tracked, fs.lost_left_image,
+      fs.lost_no_convergence, fs.lost_low_texture, fs.lost_residual, fs.lost_forward_backward,
+      fs.lost_gate, fs.lost_mask, fs.lost_epipolar, fs.forward_backward_checks, fs.refreshed,
+      fs.detected, fs.detect_cells, fs.residual_median, fs.motion_dx, fs.motion_dy,
+      fs.motion_inliers, fs.motion_anchors, fs.gate_released, fs.lk_iterations, fs.pyramid_ms,
+      fs.lk_ms, fs.epipolar_ms, fs.detect_ms);
 }
 
 /// What the frame loop produced.

@@ -75,11 +75,15 @@ inline bool haveSharedSequence(const std::string& name) {
 /// cross build whose tests run under qemu-user, it starts with the emulator (and its -L prefix), so
 /// commands spawned by tests run too; use it only to build command lines, not as a file path.
 inline std::string binaryPath(const std::string& relative) {
+  // Appended to one string, not operator+ on temporaries: the tests are compiled at -O1
+  // (tests/CMakeLists.txt), where GCC 12 reports a false -Warray-bounds inside the move of the
+  // temporary that `std::string(...) + "/"` returns.
+  std::string path;
 #ifdef EPITRACK_TEST_EMULATOR
-  return std::string(EPITRACK_TEST_EMULATOR) + " " + EPITRACK_BINARY_DIR + "/" + relative;
-#else
-  return std::string(EPITRACK_BINARY_DIR) + "/" + relative;
+  path.append(EPITRACK_TEST_EMULATOR).append(" ");
 #endif
+  path.append(EPITRACK_BINARY_DIR).append("/").append(relative);
+  return path;
 }
 
 /// Runs a shell command, returns its exit status (or -1).

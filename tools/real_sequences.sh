@@ -40,7 +40,10 @@ except ValueError:
     print(f"{name}: exit {rc}, status {s.get('status')}: {ev.strip()}")
     sys.exit(0)
 fb = s.get("focal_fallback", "")
-print(f"{name}: exit {rc}, {secs} s, status {s.get('status')}, {e['matched_frames']}/{e['gt_frames']} "
+cu = s.get("centre_uncertainty", {})
+cu_text = (f", centre sd {cu['sd_steps']:.3f} step ({cu['sd_percent_of_path']:.3f} % of path)"
+           if cu else "")
+print(f"{name}: exit {rc}, {secs} s, status {s.get('status')}{cu_text}, {e['matched_frames']}/{e['gt_frames']} "
       f"frames, ATE {100 * e['ate_rmse_rel']:.4f} % ({e['ate_rmse']:.4g}), rotation "
       f"{e['rot_err_deg_mean']:.3f} deg, focal {s.get('focal_px'):.1f} px "
       f"({s.get('focal_source')}{', ' + fb if fb else ''}), reprojection {s.get('mean_reproj_px'):.3f} px")

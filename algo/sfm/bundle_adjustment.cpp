@@ -673,6 +673,19 @@ void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
 
 bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed,
                                         const Layout& L) {
+  formReducedSystem(lambda, points_fixed, L);
+  // In-place Cholesky (the damped reduced system is positive definite); no allocation.
+  auto A = A_.topLeftCorner(L.n, L.n);
+  Eigen::Ref<Eigen::MatrixXd> A_ref(A);
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(A_ref);
+  auto dc = delta_.head(L.n);
+  dc = b_.head(L.n);
+  if (llt.info() == Eigen::Success) llt.solveInPlace(dc);
+  return llt.info() == Eigen::Success && dc.allFinite();
+}
+
+void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> points_fixed,
+                                       const Layout& L) {
   const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
   const Eigen::MatrixXd& H = S_;
   const Eigen::VectorXd& g = rhs_;
@@ -722,13 +735,6 @@ bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> 
   // Mirror the upper triangle.
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) A(j, i) = A(i, j);
-  // In-place Cholesky (the damped reduced system is positive definite); no allocation.
-  Eigen::Ref<Eigen::MatrixXd> A_ref(A);
-  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(A_ref);
-  auto dc = delta_.head(n);
-  dc = b;
-  if (llt.info() == Eigen::Success) llt.solveInPlace(dc);
-  return llt.info() == Eigen::Success && dc.allFinite();
 }
 
 double BundleAdjuster::backSubstitute(std::span<const BaObservation> observations,
@@ -991,6 +997,117 @@ double BundleAdjuster::lineDelayStdError(
   const double dof = std::max(1.0, 2.0 * L.no - L.n - 3.0 * L.np);
   const double sigma2 = 2.0 * cost / dof;
   return std::sqrt(sigma2 * z.squaredNorm());
+}
+
+}  // namespace epitrack
+
+namespace epitrack {
+
+namespace {
+// The similarity's scaling about `anchor` (the gauge camera's centre), as a step of camera c's
+// update (dtheta, dt): X -> anchor + (1 + e)(X - anchor) keeps every projection when
+// t -> (1 + e) t + e R anchor, so dtheta = 0 and dt = R (anchor - C) per unit e.
+Eigen::Vector3d scalingStep(const BaCamera& c, const Eigen::Vector3d& anchor) {
+  return c.R_cw * anchor + c.t_cw;
+}
+}  // namespace
+
+bool BundleAdjuster::holdScale(std::span<const BaCamera> cameras, const BaCamera& anchor_camera,
+                               std::span<const double> undetermined, const Layout& L) {
+  // Gauge: with one fixed camera the scale is held by the constraint s^T delta = 0 along the
+  // scaling direction s, added as mu s s^T with mu the system's largest diagonal (the
+  // covariance is then that of the cameras at a fixed overall scale). Two fixed cameras apart
+  // hold the scale themselves.
+  const Eigen::Vector3d anchor = -anchor_camera.R_cw.transpose() * anchor_camera.t_cw;
+  auto s = b_.head(L.n);
+  s.setZero();
+  for (std::size_t c = 0; c < cameras.size(); ++c)
+    if (camera_slot_[c] >= 0 && undetermined[c] >= 0.0)
+      s.segment<3>(camera_slot_[c] + 3) = scalingStep(cameras[c], anchor);
+  const double s_norm = s.norm();
+  if (!(s_norm > 0.0)) return false;
+  s /= s_norm;
+  auto A = A_.topLeftCorner(L.n, L.n);
+  A.selfadjointView<Eigen::Lower>().rankUpdate(s, A.diagonal().maxCoeff());
+  return true;
+}
+
+bool BundleAdjuster::centreStandardDeviations(
+    std::span<const BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+    std::span<const Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+    std::span<const BaObservation> observations, const BaIntrinsics& k,
+    const BundleAdjustmentOptions& options, std::span<double> centre_sd) {
+  if (centre_sd.size() != cameras.size() ||
+      !validInput(cameras, camera_fixed, points, points_fixed, observations, options))
+    return false;
+  int anchor_camera = -1;
+  int fixed_cameras = 0;
+  for (std::size_t c = 0; c < camera_fixed.size(); ++c) {
+    if (camera_fixed[c] == 0) continue;
+    if (anchor_camera < 0) anchor_camera = static_cast<int>(c);
+    ++fixed_cameras;
+  }
+  if (anchor_camera < 0) return false;
+  motions_ = {};
+  neighbours_ = {};
+  const Layout L =
+      buildLayout(camera_fixed, observations, static_cast<int>(points.size()), options);
+  if (L.n == 0) return false;
+  const double cost = evaluateCost(cameras, points, observations, k, options.huber_px, nullptr);
+  linearize(cameras, points, observations, k, options, L);
+  // The marginal covariance of the cameras and intrinsics is the inverse of the Schur
+  // complement at the minimum (Triggs et al. 2000, §6; the points are eliminated, which
+  // marginalises them). Undamped it can be singular to rounding (a point seen twice along
+  // nearly one ray): the smallest of a few relative dampings that factors is used (each scales
+  // the diagonal by 1 + lambda, so a determined centre's variance changes by about lambda).
+  // A free camera without one observation in front of it has no information at all: its
+  // centre is undetermined (centre_sd -1), and its rows are set to the identity so that the
+  // others can still be measured.
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    const int slot = camera_slot_[c];
+    centre_sd[c] = slot >= 0 && diag_.segment<6>(slot).maxCoeff() <= 0.0 ? -1.0 : 0.0;
+  }
+  bool factored = false;
+  for (const double lambda : {1e-9, 1e-6, 1e-3}) {
+    formReducedSystem(lambda, points_fixed, L);
+    for (std::size_t c = 0; c < cameras.size(); ++c)
+      if (centre_sd[c] < 0.0)
+        A_.block<6, 6>(camera_slot_[c], camera_slot_[c]) = Eigen::Matrix<double, 6, 6>::Identity();
+    if (fixed_cameras == 1 &&
+        !holdScale(cameras, cameras[static_cast<std::size_t>(anchor_camera)], centre_sd, L))
+      return false;
+    auto A = A_.topLeftCorner(L.n, L.n);
+    Eigen::Ref<Eigen::MatrixXd> A_ref(A);
+    const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(A_ref);
+    factored = llt.info() == Eigen::Success;
+
+    if (factored) break;
+  }
+  if (!factored) return false;
+  const double dof = std::max(1.0, 2.0 * L.no - L.n - 3.0 * L.np);
+  const double sigma2 = 2.0 * cost / dof;
+  // Centre C = -R^T t; its derivative by the update (dtheta, dt) is [-R^T [t]x, -R^T]. Each
+  // row's variance is |L^-1 J^T|^2; J^T is zero before the camera's slot, so the forward
+  // substitution starts there.
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    const int slot = camera_slot_[c];
+    if (slot < 0 || centre_sd[c] < 0.0) continue;
+    const BaCamera& cam = cameras[c];
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>() = -cam.R_cw.transpose() * skew(cam.t_cw);
+    J.rightCols<3>() = -cam.R_cw.transpose();
+    const int m = L.n - slot;
+    double variance = 0.0;
+    for (int r = 0; r < 3; ++r) {
+      auto z = delta_.head(m);
+      z.setZero();
+      z.head<6>() = J.row(r).transpose();
+      A_.block(slot, slot, m, m).triangularView<Eigen::Lower>().solveInPlace(z);
+      variance += z.squaredNorm();
+    }
+    centre_sd[c] = std::sqrt(sigma2 * variance);
+  }
+  return std::isfinite(sigma2);
 }
 
 }  // namespace epitrack

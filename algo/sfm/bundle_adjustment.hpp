@@ -114,6 +114,23 @@ class BundleAdjuster {
                                 std::span<const BaObservation> observations,
                                 BaIntrinsics& intrinsics, const BundleAdjustmentOptions& options);
 
+  /// How well the adjustment determines each camera's centre, at a minimum of `solve` (global
+  /// shutter; call it with the solve's arguments after it): the marginal covariance of the
+  /// centre C = -R^T t from the inverse of the reduced camera system at the minimum (the points
+  /// eliminated by the Schur complement, which marginalises them, and the refined intrinsics
+  /// marginalised with them; the smallest relative damping of 1e-9, 1e-6, 1e-3 that factors),
+  /// scaled by the residuals' variance sigma^2 = 2 cost / dof. Gauge: the fixed cameras keep
+  /// their pose; with one fixed camera the overall scale is held by the constraint that the free
+  /// cameras do not move along the similarity's scaling about its centre (two or more fixed
+  /// cameras hold it themselves). `centre_sd[c]` = sqrt(trace Sigma_C) in world units (0 for a
+  /// fixed camera, -1 for a free camera without one observation in front of it: undetermined).
+  /// False: invalid input, no fixed camera, or a system that is not positive definite.
+  bool centreStandardDeviations(
+      std::span<const BaCamera> cameras, std::span<const uint8_t> camera_fixed,
+      std::span<const Eigen::Vector3d> points, std::span<const uint8_t> points_fixed,
+      std::span<const BaObservation> observations, const BaIntrinsics& intrinsics,
+      const BundleAdjustmentOptions& options, std::span<double> centre_sd);
+
   /// The rolling-shutter adjustment (issue 27): each camera's pose is its reference row's and
   /// `motions[c]` its motion over the readout (algo/geometry/rolling_shutter.hpp: constant angular
   /// velocity in the camera frame, linear velocity of the centre in the world frame, per frame
@@ -230,6 +247,12 @@ class BundleAdjuster {
                            std::span<const uint8_t> points_fixed,
                            std::span<const BaObservation> observations, const BaIntrinsics& k,
                            const BundleAdjustmentOptions& options, const Layout& L, double cost);
+  /// Adds the scale's gauge constraint (centreStandardDeviations) to A_, over the cameras whose
+  /// `undetermined` entry is not negative; false: none of them moves.
+  bool holdScale(std::span<const BaCamera> cameras, const BaCamera& anchor_camera,
+                 std::span<const double> undetermined, const Layout& L);
+  /// The damped Schur complement for `lambda` (A_, mirrored) and its right-hand side (b_).
+  void formReducedSystem(double lambda, std::span<const uint8_t> points_fixed, const Layout& L);
   /// The damped Schur complement for `lambda` solved for the camera and intrinsics step
   /// (delta_); false when it is not positive definite.
   bool solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed, const Layout& L);

@@ -41,6 +41,8 @@ const char* toString(SolverStatus s) {
       return "initialization-failed";
     case Solver::Status::kPartial:
       return "partial";
+    case Solver::Status::kTrajectoryUncertain:
+      return "trajectory-uncertain";
   }
   return "unknown";
 }
@@ -167,6 +169,9 @@ SolverSummary Solver::summary() const {
   s.solved_frames = solvedFrames();
   s.initial_pair_a = init_a_;
   s.initial_pair_b = init_b_;
+  s.centre_sd_percent = centre_sd_percent_;
+  s.centre_sd_steps = centre_sd_steps_;
+  s.path_length = path_length_;
   return s;
 }
 
@@ -521,9 +526,14 @@ bool Solver::finalize() {
       final_cameras_.push_back(others[(2 * k + 1) * others.size() / (2 * m)]);
   }
   // Twice: the second pass measures the robust scale on the adjusted map's residuals.
+  // The last of them also measures how well it determines the camera centres (assessCentres).
+  const bool measure = options_.max_centre_sd_steps > 0.0;
   adjust(true);
+  measure_centres_ = measure && options_.refine_distortion == 0;
   adjust(true);
+  measure_centres_ = measure;
   if (options_.refine_distortion > 0) adjust(true);  // distortion changes the normalized points
+  measure_centres_ = false;
   // Every frame (keyframes included) re-resected on the final points: PnP from scratch when the
   // refined pose would not fit (recovers frames missed while the map was young).
   std::vector<uint8_t> adjusted(frames_.size(), 0);
@@ -541,6 +551,7 @@ bool Solver::finalize() {
   }
   computeErrors();
   assessCoverage();
+  assessCentres();
   return solvedFrames() > 0;
 }
 

@@ -77,6 +77,13 @@ struct SolverOptions {
   /// A reconstruction that solves fewer than this fraction of the frames (views) is `kPartial`,
   /// never `kOk` (issues 20 and 22: a solve of 8 frames in 200 is not a result to call done).
   double min_solved_fraction = 0.9;
+  /// A solve whose camera centres the final adjustment leaves uncertain by more than this
+  /// fraction of the mean frame-to-frame step (RMS of the centres' standard deviations over the
+  /// path length per step, Solver::assessCentres) is `kTrajectoryUncertain`, never `kOk` (issue
+  /// 20: a fast pan that walks solved its rotations and focal to a few hundredths but its path
+  /// to 7-22 %; measured 0.21-0.25 step there, at most 0.06 on the clips that solve well,
+  /// docs/solver.md "Camera path check"). 0: not checked.
+  double max_centre_sd_steps = 0.12;
 };
 
 /// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the
@@ -111,6 +118,9 @@ struct SolvedFrame {
   PoseCw pose;
   int inliers = 0;
   double rms_px = 0.0;
+  /// Standard deviation of the camera centre (world units, sqrt of its covariance's trace) from
+  /// the final adjustment, for its cameras (0: not one of them, the gauge camera, or not measured).
+  double centre_sd = 0.0;
   UnsolvedCause unsolved = UnsolvedCause::kNoReconstruction;  ///< kNone once solved
 };
 
@@ -174,6 +184,10 @@ enum class SolverStatus {
   /// frames unsolved: `frames()` says which and why (SolvedFrame::unsolved), the message names
   /// the unsolved ranges.
   kPartial,
+  /// Every frame solved, but the final adjustment determines the camera centres poorly
+  /// (SolverOptions::max_centre_sd_steps): the rotations and the focal stand, the path does
+  /// not. The message gives the measured figure.
+  kTrajectoryUncertain,
 };
 const char* toString(SolverStatus s);
 
@@ -210,6 +224,14 @@ struct SolverSummary {
   int frames = 0;
   int solved_frames = 0;
   int initial_pair_a = -1, initial_pair_b = -1;  ///< -1: no initial pair
+  /// RMS over the final adjustment's cameras of the centres' standard deviations, in percent of
+  /// the solved path's length (Solver::centreUncertainty); negative: not measured (a tripod, a
+  /// failed solve, or max_centre_sd_steps 0).
+  double centre_sd_percent = -1.0;
+  /// The same RMS in mean frame-to-frame steps of the path (the figure max_centre_sd_steps
+  /// limits); negative: not measured.
+  double centre_sd_steps = -1.0;
+  double path_length = 0.0;  ///< of the solved centres in frame order (world units)
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -283,6 +305,9 @@ class Solver {
   /// Sets every frame's UnsolvedCause, then turns kOk / kRotationOnly into kPartial (with a
   /// message naming the unsolved ranges) when too few frames are solved.
   void assessCoverage();
+  /// The centres' uncertainty relative to the path (SolverSummary::centre_sd_percent, _steps)
+  /// and, when it exceeds max_centre_sd_steps, kOk turned into kTrajectoryUncertain with a message.
+  void assessCentres();
   /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
   void sweepFocal();
   [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,
@@ -316,6 +341,11 @@ class Solver {
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
   double robust_huber_px_ = 0.0;
+  // The next global adjustment also measures its cameras' centre uncertainty (finalize's last).
+  bool measure_centres_ = false;
+  double centre_sd_percent_ = -1.0;
+  double centre_sd_steps_ = -1.0;
+  double path_length_ = 0.0;
 };
 
 }  // namespace epitrack

@@ -260,6 +260,12 @@ void Solver::adjust(bool global) {
   for (std::size_t i = 0; i < pts.size(); ++i) {
     if (pts[i].allFinite()) points_[static_cast<std::size_t>(pt_index[i])].X = pts[i];
   }
+  if (global && measure_centres_) {
+    std::vector<double> sd(cams.size(), 0.0);
+    if (ba.centreStandardDeviations(cams, cam_fixed, pts, {}, obs, k, bo, sd))
+      for (std::size_t c = 0; c < cams.size(); ++c)
+        frames_[static_cast<std::size_t>(cam_frame[c])].centre_sd = sd[c];
+  }
 }
 
 bool Solver::registerFrames() {

@@ -248,6 +248,14 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("ba_iterations", rec.readout_ba_iterations);
     j.endObject();
   }
+  if (rec.centre_sd_steps >= 0.0) {
+    j.key("centre_uncertainty");
+    j.beginObject();
+    j.field("sd_steps", rec.centre_sd_steps);
+    j.field("limit_steps", rec.centre_sd_limit_steps);
+    j.field("sd_percent_of_path", rec.centre_sd_percent);
+    j.endObject();
+  }
   j.field("motion", rec.motion);
   if (!rec.matcher.empty()) j.field("matcher", rec.matcher);
   j.field("mean_reproj_px", mean_px);

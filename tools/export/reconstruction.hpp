@@ -157,9 +157,17 @@ struct Reconstruction {
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see
-  /// frame_ranges), or the reason the solve failed.
+  /// frame_ranges), "trajectory-uncertain" (the camera centres not determined; see
+  /// centre_sd_steps), or the reason the solve failed.
   std::string status = "ok";
   std::string message;  ///< optional human sentence about the status
+  /// How well the final adjustment determines the camera centres: the RMS of their standard
+  /// deviations in percent of the path length and in mean frame-to-frame steps, and the limit
+  /// (steps) beyond which the status is "trajectory-uncertain" (summary.json
+  /// "centre_uncertainty"; negative: not measured).
+  double centre_sd_percent = -1.0;
+  double centre_sd_steps = -1.0;
+  double centre_sd_limit_steps = 0.0;
   /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",
   /// "SIGTERM"), the stage it stopped ("tracking", "calibration", ...) and, when the solve itself
   /// had finished, the solver's own status ("ok", "rotation-only", ...; empty otherwise).

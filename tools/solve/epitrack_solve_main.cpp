@@ -133,6 +133,11 @@ int main(int argc, char** argv) {
           &o.solver.keyframe_parallax_deg, 0.1, 30.0);
   cl.integer("ba-window", "N", "keyframes refined while solving (default 8)", &o.solver.ba_window,
              2, 1000);
+  cl.real("max-centre-sd", "STEPS",
+          "status trajectory-uncertain (exit 4) when the camera centres' standard deviation in "
+          "the final adjustment exceeds this fraction of the mean frame-to-frame step; 0 = not "
+          "checked (default 0.12)",
+          &o.solver.max_centre_sd_steps, 0.0, 100.0);
   int seed = 1;
   cl.integer("seed", "S", "RANSAC seed (default 1)", &seed, 0, 2147483647);
   cl.real("max-memory", "MIB",

@@ -220,6 +220,9 @@ void describeSolve(SolveRun& run, const Solver& solver) {
   rec.motion = toString(summary.motion);
   rec.status = toString(summary.status);
   rec.message = summary.message;
+  rec.centre_sd_percent = summary.centre_sd_percent;
+  rec.centre_sd_steps = summary.centre_sd_steps;
+  rec.centre_sd_limit_steps = so.max_centre_sd_steps;
   if (!input_error.empty())
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
@@ -389,7 +392,8 @@ void buildReconstruction(SolveRun& run, const Solver& solver) {
   collectGeometry(run);
   auto& rec = run.rec;
   if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||
-      solver.status() == Solver::Status::kPartial) {
+      solver.status() == Solver::Status::kPartial ||
+      solver.status() == Solver::Status::kTrajectoryUncertain) {
     const auto sf = io::applySceneFrame(rec, run.o.scene);
     (void)sf;
   }
@@ -495,6 +499,12 @@ int exitCode(const SolveRun& run, const Solver& solver) {
     // in summary.json (solved_ranges, unsolved_ranges).
     std::fprintf(stderr, "epitrack-solve: partial: %s\n", summary.message.c_str());
     return kExitPartial;
+  }
+  if (solver.status() == Solver::Status::kTrajectoryUncertain) {
+    // Outputs written, every frame solved, but the camera path is not determined (the figure
+    // is in the message and in summary.json centre_uncertainty).
+    std::fprintf(stderr, "epitrack-solve: trajectory-uncertain: %s\n", summary.message.c_str());
+    return kExitTrajectoryUncertain;
   }
   if (!ok) {
     std::fprintf(stderr, "epitrack-solve: %s\n", summary.message.c_str());

@@ -62,11 +62,16 @@ double estimateSolveMemoryBytes(int width, int height, int max_features, int win
 /// Exit code of a partial solve: every output written, but at least a tenth of the frames
 /// (views) unsolved (status "partial"; summary.json lists the solved and unsolved ranges).
 inline constexpr int kExitPartial = 3;
+/// Exit code of a solve whose camera path the final adjustment leaves uncertain (status
+/// "trajectory-uncertain"): every output written, rotations and focal solved, the centres'
+/// standard deviation beyond the limit (summary.json centre_uncertainty).
+inline constexpr int kExitTrajectoryUncertain = 4;
 
 /// Runs the whole solve and writes every output. Returns the process exit code: 0 solved (at
 /// least 90 % of the frames; or a tripod solve of as many), 1 a runtime failure (summary.json
 /// says why whenever the clip could be read), 2 an unusable INPUT, --intrinsics, --mask or --out
-/// (one line on stderr, nothing written), 3 (kExitPartial) a partial solve, or
+/// (one line on stderr, nothing written), 3 (kExitPartial) a partial solve, 4
+/// (kExitTrajectoryUncertain) every frame solved but the camera path uncertain, or
 /// 128 + the signal (130 SIGINT, 143 SIGTERM) when a stop signal ended it early: then
 /// summary.json has status "interrupted" and lists the consistent outputs written (see
 /// tools/common/interrupt.hpp; the caller installs the handler).

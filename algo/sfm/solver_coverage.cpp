@@ -189,14 +189,17 @@ void Solver::assessCentres() {
     cameras_without_view += std::to_string(undetermined);
     cameras_without_view += " of its cameras have no observation in front of them";
   }
-  char text[400];
-  std::snprintf(text, sizeof(text),
-                "camera centres poorly determined: their standard deviation in the final "
-                "adjustment is %.2f of the mean frame-to-frame step (limit %.2f; %.3f %% of the "
-                "path length)%s; the rotations and the focal are solved, the camera path is not "
-                "to be trusted (a fast pan that travels little, short tracks)",
-                centre_sd_steps_, options_.max_centre_sd_steps, centre_sd_percent_,
-                cameras_without_view.c_str());
+  char text[512];
+  std::snprintf(
+      text, sizeof(text),
+      "camera centres poorly determined: their standard deviation in the final "
+      "adjustment is %.2f of the mean frame-to-frame step (limit %.2f; %.3f %% of the "
+      "path length)%s; %s, the camera path is not to be trusted (a fast pan that "
+      "travels little, short tracks)",
+      centre_sd_steps_, options_.max_centre_sd_steps, centre_sd_percent_,
+      cameras_without_view.c_str(),
+      // A camera that sees no point in front of it has no trustworthy rotation either.
+      undetermined > 0 ? "their poses are not solved" : "the rotations and the focal are solved");
   status_ = Status::kTrajectoryUncertain;
   message_ = text;
 }

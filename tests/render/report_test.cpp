@@ -174,6 +174,18 @@ TEST_CASE("report figures equal the reconstruction's", "[render][report]") {
   CHECK(cellValue(html, "observations") == std::to_string(rec.observations.size()));
   CHECK(cellValue(html, "seconds.bundle_adjustment") == "1.000");
   CHECK(cellValue(html, "seconds.total") == "1.750");
+  CHECK(cellValue(html, "centre_uncertainty") == "<missing>");  // not measured: no row
+  {
+    Reconstruction uncertain = rec;
+    uncertain.status = "trajectory-uncertain";
+    uncertain.centre_sd_steps = 0.208;
+    uncertain.centre_sd_limit_steps = 0.12;
+    uncertain.centre_sd_percent = 0.174;
+    const std::string u = formatReportHtml(uncertain, ReportOptions{});
+    CHECK(cellValue(u, "status") == "trajectory-uncertain");
+    CHECK(cellValue(u, "centre_uncertainty") ==
+          "0.208 frame-to-frame steps (limit 0.12), 0.174 % of the path");
+  }
   std::vector<double> residuals;
   double sum = 0.0;
   for (const auto& o : rec.observations) {

@@ -195,6 +195,14 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
   h += row("median_reproj_px", "median reprojection error (px)", fmt(4, s.median_px));
   h += row("points", "points", std::to_string(s.points));
   h += row("observations", "observations", std::to_string(rec.observations.size()));
+  if (rec.centre_sd_steps >= 0.0) {
+    // The camera path check (summary.json centre_uncertainty): above the limit the status is
+    // trajectory-uncertain.
+    h += row("centre_uncertainty", "camera centre sd",
+             fmt(3, rec.centre_sd_steps) + " frame-to-frame steps (limit " +
+                 fmt(2, rec.centre_sd_limit_steps) + "), " + fmt(3, rec.centre_sd_percent) +
+                 " % of the path");
+  }
   char buf[160];
   std::snprintf(buf, sizeof(buf), "%d x %d, cx %.2f, cy %.2f, k1 %.5g, k2 %.5g", k.width, k.height,
                 k.cx, k.cy, k.k1, k.k2);

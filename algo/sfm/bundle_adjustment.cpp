@@ -999,10 +999,6 @@ double BundleAdjuster::lineDelayStdError(
   return std::sqrt(sigma2 * z.squaredNorm());
 }
 
-}  // namespace epitrack
-
-namespace epitrack {
-
 namespace {
 // The similarity's scaling about `anchor` (the gauge camera's centre), as a step of camera c's
 // update (dtheta, dt): X -> anchor + (1 + e)(X - anchor) keeps every projection when
@@ -1080,7 +1076,6 @@ bool BundleAdjuster::centreStandardDeviations(
     Eigen::Ref<Eigen::MatrixXd> A_ref(A);
     const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(A_ref);
     factored = llt.info() == Eigen::Success;
-
     if (factored) break;
   }
   if (!factored) return false;

@@ -528,12 +528,10 @@ bool Solver::finalize() {
   // Twice: the second pass measures the robust scale on the adjusted map's residuals.
   // The last of them also measures how well it determines the camera centres (assessCentres).
   const bool measure = options_.max_centre_sd_steps > 0.0;
+  const bool refine_distortion = options_.refine_distortion > 0;
   adjust(true);
-  measure_centres_ = measure && options_.refine_distortion == 0;
-  adjust(true);
-  measure_centres_ = measure;
-  if (options_.refine_distortion > 0) adjust(true);  // distortion changes the normalized points
-  measure_centres_ = false;
+  adjust(true, measure && !refine_distortion);
+  if (refine_distortion) adjust(true, measure);  // distortion changes the normalized points
   // Every frame (keyframes included) re-resected on the final points: PnP from scratch when the
   // refined pose would not fit (recovers frames missed while the map was young).
   std::vector<uint8_t> adjusted(frames_.size(), 0);

@@ -225,7 +225,7 @@ struct SolverSummary {
   int solved_frames = 0;
   int initial_pair_a = -1, initial_pair_b = -1;  ///< -1: no initial pair
   /// RMS over the final adjustment's cameras of the centres' standard deviations, in percent of
-  /// the solved path's length (Solver::centreUncertainty); negative: not measured (a tripod, a
+  /// the solved path's length (Solver::assessCentres); negative: not measured (a tripod, a
   /// failed solve, or max_centre_sd_steps 0).
   double centre_sd_percent = -1.0;
   /// The same RMS in mean frame-to-frame steps of the path (the figure max_centre_sd_steps
@@ -295,7 +295,9 @@ class Solver {
   bool shouldBeKeyframe(int f) const;
   void addKeyframe(int f);
   int triangulateNewTracks(int f);
-  void adjust(bool global);
+  /// `measure_centres` (a global adjustment): also each adjusted camera's centre uncertainty
+  /// (SolvedFrame::centre_sd, for assessCentres).
+  void adjust(bool global, bool measure_centres = false);
   bool tripodSolve();
   /// The rotation model tested over windows spanning as many frames as 30 tracks persist, each
   /// judged by GRIC with the noise scale measured on its own tracks (RotationCheck).
@@ -341,8 +343,6 @@ class Solver {
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
   double robust_huber_px_ = 0.0;
-  // The next global adjustment also measures its cameras' centre uncertainty (finalize's last).
-  bool measure_centres_ = false;
   double centre_sd_percent_ = -1.0;
   double centre_sd_steps_ = -1.0;
   double path_length_ = 0.0;

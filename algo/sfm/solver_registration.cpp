@@ -139,7 +139,7 @@ int Solver::triangulateNewTracks(int f) {
   return added;
 }
 
-void Solver::adjust(bool global) {
+void Solver::adjust(bool global, bool measure_centres) {
   // Cameras: keyframes (the window, or all), plus fixed keyframes that see the window's points.
   // A global adjustment also takes the final adjustment's extra cameras (final_cameras_).
   std::vector<int> frames_in = keyframes_;
@@ -260,7 +260,7 @@ void Solver::adjust(bool global) {
   for (std::size_t i = 0; i < pts.size(); ++i) {
     if (pts[i].allFinite()) points_[static_cast<std::size_t>(pt_index[i])].X = pts[i];
   }
-  if (global && measure_centres_) {
+  if (global && measure_centres) {
     std::vector<double> sd(cams.size(), 0.0);
     if (ba.centreStandardDeviations(cams, cam_fixed, pts, {}, obs, k, bo, sd))
       for (std::size_t c = 0; c < cams.size(); ++c)

@@ -588,18 +588,21 @@ void FeatureTracker::redetect(ImageView<const uint8_t> mask) {
     if (cells) recordSearchedCells(true);
     return;
   }
+  if (!redetectDue()) return;
   if (cells) {
     redetectInCells(mask);
     return;
   }
+  detect(mask, {});
+  frames_since_detect_ = 0;
+  stats_.detect_cells = 1;
+}
+
+bool FeatureTracker::redetectDue() const {
   const double target = options_.redetect_fraction * options_.max_features;
   const bool below = live_count_ < options_.max_features;
-  if (live_count_ < target || (below && options_.redetect_interval > 0 &&
-                               frames_since_detect_ >= options_.redetect_interval)) {
-    detect(mask, {});
-    frames_since_detect_ = 0;
-    stats_.detect_cells = 1;
-  }
+  return live_count_ < target || (below && options_.redetect_interval > 0 &&
+                                  frames_since_detect_ >= options_.redetect_interval);
 }
 
 void FeatureTracker::countTracksPerCell() {
@@ -648,11 +651,6 @@ int FeatureTracker::needyRegions() {
 }
 
 void FeatureTracker::redetectInCells(ImageView<const uint8_t> mask) {
-  const double target = options_.redetect_fraction * options_.max_features;
-  const bool below = live_count_ < options_.max_features;
-  const bool due = live_count_ < target || (below && options_.redetect_interval > 0 &&
-                                            frames_since_detect_ >= options_.redetect_interval);
-  if (!due) return;
   countTracksPerCell();
   int needy = 0;
   bool emptied = false;

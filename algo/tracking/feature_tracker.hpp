@@ -289,7 +289,9 @@ class FeatureTracker {
   void detect(ImageView<const uint8_t> mask, std::span<const DetectionRegion> regions);
   /// This frame's re-detection decision and search (whole frame or grid cells).
   void redetect(ImageView<const uint8_t> mask);
-  /// The cell policy (redetect_cells > 0): searches the needy cells when due.
+  /// Fewer live tracks than redetect_fraction of max_features, or redetect_interval reached.
+  [[nodiscard]] bool redetectDue() const;
+  /// The cell policy (redetect_cells > 0), when a re-detection is due: searches the needy cells.
   void redetectInCells(ImageView<const uint8_t> mask);
   /// Live tracks per grid cell into cell_count_.
   void countTracksPerCell();

@@ -441,7 +441,6 @@ void markInterrupted(SolveRun& run) {
   }
 }
 
-// The one-line result on stderr (no nan in what a user reads).
 // What the result line says of a fallback focal (summary.json focal_fallback).
 const char* fallbackNote(const std::string& fallback) {
   if (fallback == "profile") return ", from the reprojection profile";
@@ -450,6 +449,7 @@ const char* fallbackNote(const std::string& fallback) {
   return "";
 }
 
+// The one-line result on stderr (no nan in what a user reads).
 void printResult(const SolveRun& run, const Solver& solver) {
   const auto& rec = run.rec;
   const auto& summary = run.summary;

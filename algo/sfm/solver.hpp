@@ -9,6 +9,7 @@
 
 #include "algo/geometry/focal_self_calibration.hpp"
 #include "algo/geometry/pose.hpp"
+#include "algo/sfm/rotation_adjustment.hpp"
 #include "algo/sfm/track_table.hpp"
 
 namespace epitrack {
@@ -84,6 +85,15 @@ struct SolverOptions {
   /// to 7-22 %; measured 0.21-0.25 step there, at most 0.06 on the clips that solve well,
   /// docs/solver.md "Camera path check"). 0: not checked.
   double max_centre_sd_steps = 0.12;
+  /// The tripod solve's rotations (chained from pairwise homographies) are refined by a
+  /// rotation-only bundle adjustment over every solved frame (RotationAdjuster).
+  bool tripod_adjustment = true;
+  /// A rolling shutter's readout in frame intervals (first row to last; 0: global shutter),
+  /// used by the tripod solve's adjustment on the tracks as exposed (Solver::setExposedTracks).
+  /// The solver's own tracks are then expected at the frames' middle-row times
+  /// (shiftTracksToReferenceRow); a general solve is refined for the rolling shutter after the
+  /// solve (refineRollingShutter), a rotating camera has no points for that.
+  double readout_frames = 0.0;
 };
 
 /// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the
@@ -253,6 +263,11 @@ class Solver {
 
   Solver(const TrackTable& tracks, int width, int height, const SolverOptions& options);
 
+  /// The tracks as exposed by a rolling shutter (SolverOptions::readout_frames), when the
+  /// solver's tracks were moved to the middle-row times: same tracks, same dense indices. The
+  /// tripod solve's adjustment then models each row's time on them. Must outlive the solver.
+  void setExposedTracks(const TrackTable* tracks) { exposed_tracks_ = tracks; }
+
   bool calibrate();
   /// Stage 1 for a focal given in the options when the clip's calibration checks already passed
   /// elsewhere (the focal profile's probes, solving a subsampled copy of the clip): the focal is
@@ -299,6 +314,12 @@ class Solver {
   /// (SolvedFrame::centre_sd, for assessCentres).
   void adjust(bool global, bool measure_centres = false);
   bool tripodSolve();
+  /// The rotation-only adjustment of the tripod solve (SolverOptions::tripod_adjustment).
+  void refineTripod();
+  void directionsAndObservations(const TrackTable& tracks, const std::vector<int>& camera_of_frame,
+                                 const std::vector<Eigen::Matrix3d>& rotations,
+                                 std::vector<Eigen::Vector3d>& directions,
+                                 std::vector<RotationObservation>& observations) const;
   /// The rotation model tested over windows spanning as many frames as 30 tracks persist, each
   /// judged by GRIC with the noise scale measured on its own tracks (RotationCheck).
   [[nodiscard]] RotationCheck checkRotationModel() const;
@@ -319,6 +340,7 @@ class Solver {
                    std::vector<Eigen::Vector2d>* x2) const;
 
   const TrackTable& tracks_;
+  const TrackTable* exposed_tracks_ = nullptr;  // setExposedTracks
   int width_, height_;
   SolverOptions options_;
   double f_ = 0.0, cx_ = 0.0, cy_ = 0.0, k1_ = 0.0, k2_ = 0.0, aspect_ = 1.0;
@@ -335,6 +357,8 @@ class Solver {
   std::vector<Eigen::Matrix3d> homographies_;  // of the calibration pairs (tripod solve)
   int init_a_ = -1, init_b_ = -1;
   bool tripod_ = false;
+  double tripod_rms_before_px_ = 0.0;  // the rotation-only adjustment's RMS (0: not run)
+  double tripod_rms_after_px_ = 0.0;
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA

@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "algo/math/random.hpp"
+#include "algo/sfm/rolling_shutter_tracks.hpp"
 #include "algo/sfm/solver.hpp"
 #include "tests/support/seeded_random.hpp"
 #include "tools/eval/trajectory_metrics.hpp"
@@ -58,8 +59,9 @@ void makeClip(Clip& c, synth::SceneKind kind, int frames, double wander, double 
 // comes back is a new track (a fast pan sweeps the same walls again after each reversal, and a
 // landmark id kept over the gap would hand the solver baselines no tracker offers).
 void makeTrackerClip(Clip& c, synth::SceneKind kind, int frames, double walk_m, double noise_px,
-                     uint64_t scene_seed = 1) {
+                     uint64_t scene_seed = 1, double readout = 0.0) {
   c.options.kind = kind;
+  c.options.readout = readout;
   c.options.frames = frames;
   c.options.walk_m = walk_m;
   c.options.seed = scene_seed;
@@ -221,7 +223,7 @@ TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][
     worst = std::max(worst, rotationAngle(Rg.transpose() * Re) * 180.0 / M_PI);
   }
   INFO("worst relative rotation error " << worst << " deg");
-  CHECK(worst < 0.1);
+  CHECK(worst < 0.01);  // chained homographies: 0.039 deg; with the rotation-only adjustment 0.0043
 }
 
 TEST_CASE("The solve does not depend on small shifts of the clip's start", "[sfm][solver][slow]") {
@@ -435,7 +437,9 @@ TEST_CASE("A fast pan is solved as a tripod only when a rotation explains its tr
     }
     std::printf("fast pan on a tripod, focal %g: worst rotation error %.3f deg\n", focal, worst);
     INFO("worst relative rotation error " << worst << " deg");
-    CHECK(worst < 1.0);
+    // Rotations chained from pairwise homographies drifted to 0.61 deg here; the rotation-only
+    // adjustment over every frame (Solver::refineTripod) measured 0.001 deg.
+    CHECK(worst < 0.01);
   }
 }
 
@@ -469,4 +473,88 @@ TEST_CASE("Fast pans walking on other scenes and at half the speed are never rot
     CHECK(s.status() == Solver::Status::kRotationOnly);
     CHECK(s.solvedFrames() == 120);
   }
+}
+
+namespace {
+
+// The worst rotation error of the solved frames relative to frame 0 (degrees).
+double worstRelativeRotationDeg(const Clip& c, const Solver& s) {
+  const Eigen::Matrix3d R0 = c.gt[0].rotation.toRotationMatrix();
+  const Eigen::Matrix3d E0 = s.frames()[0].pose.R_cw.transpose();
+  double worst = 0.0;
+  for (std::size_t f = 0; f < s.frames().size(); ++f) {
+    if (!s.frames()[f].solved) continue;
+    const Eigen::Matrix3d Rg = R0.transpose() * c.gt[f].rotation.toRotationMatrix();
+    const Eigen::Matrix3d Re = E0.transpose() * s.frames()[f].pose.R_cw.transpose();
+    worst = std::max(worst, rotationAngle(Rg.transpose() * Re) * 180.0 / M_PI);
+  }
+  return worst;
+}
+
+// A rolling-shutter clip's tracks at their frames' middle-row times (the solver's input when the
+// readout is given, as epitrack-solve makes it).
+TrackTable middleRowTracks(const Clip& c) {
+  TrackTable shifted;
+  shiftTracksToReferenceRow(c.tracks,
+                            RollingShutter::fromReadout(c.options.readout, c.options.height,
+                                                        0.5 * (c.options.height - 1)),
+                            shifted);
+  return shifted;
+}
+
+}  // namespace
+
+TEST_CASE("A rolling-shutter fast pan on a tripod is a tripod solve once the readout is given",
+          "[sfm][solver][tripod][rolling-shutter]") {
+  // 30 ms readout at 30 fps (0.9 frame), the fast pan (up to 3.5 deg per frame) of the test
+  // above: the rows' shear reads as parallax to the homographies unless the tracks are moved to
+  // their middle-row times (shiftTracksToReferenceRow); the tripod adjustment then models each
+  // row's time on the tracks as exposed.
+  constexpr double kTrackNoisePx = 0.05;
+  constexpr double kReadout = 0.9;
+  Clip tripod;
+  makeTrackerClip(tripod, synth::SceneKind::kFastPan, 120, 0.0, kTrackNoisePx, 1, kReadout);
+  const TrackTable shifted = middleRowTracks(tripod);
+  for (const double focal : {600.0, 0.0}) {
+    SolverOptions o;
+    o.focal_px = focal;
+    o.readout_frames = kReadout;
+    Solver s(shifted, tripod.options.width, tripod.options.height, o);
+    s.setExposedTracks(&tripod.tracks);
+    REQUIRE(s.calibrate());
+    CHECK_FALSE(s.initialize());
+    const double worst = worstRelativeRotationDeg(tripod, s);
+    std::printf(
+        "rolling-shutter fast pan on a tripod, focal %g: worst rotation error %.4f deg, "
+        "focal %.2f px\n",
+        focal, worst, s.summary().focal_px);
+    INFO("readout given, focal " << focal << ": " << toString(s.status()) << " "
+                                 << s.summary().message << "; worst rotation error " << worst
+                                 << " deg, focal " << s.summary().focal_px);
+    CHECK(s.status() == Solver::Status::kRotationOnly);
+    CHECK(s.solvedFrames() == 120);
+    CHECK(worst < 0.05);
+    CHECK(std::abs(s.summary().focal_px / 600.0 - 1.0) < 2e-3);
+  }
+  // The same tracks solved as a global shutter: not this tripod solve.
+  Solver global(tripod.tracks, tripod.options.width, tripod.options.height, SolverOptions{});
+  REQUIRE(global.calibrate());
+  global.initialize();
+  const double worst = global.solvedFrames() > 0 ? worstRelativeRotationDeg(tripod, global) : 180;
+  INFO("as a global shutter: " << toString(global.status()) << ", worst " << worst << " deg");
+  CHECK((global.status() != Solver::Status::kRotationOnly || worst > 0.5));
+  // Walking with the same rolling shutter and the readout given: the shift does not hide the
+  // parallax.
+  Clip walking;
+  makeTrackerClip(walking, synth::SceneKind::kFastPan, 120, 0.012, kTrackNoisePx, 1, kReadout);
+  const TrackTable walking_shifted = middleRowTracks(walking);
+  SolverOptions o;
+  o.focal_px = 600.0;
+  o.readout_frames = kReadout;
+  Solver s(walking_shifted, walking.options.width, walking.options.height, o);
+  s.setExposedTracks(&walking.tracks);
+  REQUIRE(s.calibrate());
+  s.initialize();
+  INFO("walking: " << toString(s.status()) << " " << s.summary().message);
+  CHECK(s.summary().motion != MotionClass::kRotationOnly);
 }

@@ -65,9 +65,10 @@ int main(int argc, char** argv) {
             &distortion);
   cl.real("readout-ms", "MS",
           "rolling shutter: the sensor's readout time (first row to last; phones and CMOS "
-          "modules 10-35 ms). Each frame's pose and its motion over the readout are refined, the "
-          "points seen from the rows' poses; the poses written are the middle row's (default 0: "
-          "global shutter)",
+          "modules 10-35 ms). The solve works on the tracks moved to each frame's middle-row "
+          "time, then each frame's pose and its motion over the readout are refined, the points "
+          "seen from the rows' poses (a tripod: the rotations, each row at its own time); the "
+          "poses written are the middle row's (default 0: global shutter)",
           &o.readout_ms, 0.0, 1000.0);
   cl.choice("readout", {"auto", "none"},
             "rolling shutter: auto = estimate the readout (the motion within each frame against "

@@ -1,6 +1,7 @@
 #include "tools/solve/solve_pipeline.hpp"
 
 #include "algo/sfm/rolling_shutter_refinement.hpp"
+#include "algo/sfm/rolling_shutter_tracks.hpp"
 #include "tools/solve/solve_run.hpp"
 
 #include <algorithm>
@@ -291,12 +292,33 @@ void collectGeometry(SolveRun& run) {
 // frame's middle-row pose and its motion over the readout, the points from the rows' poses
 // (algo/sfm/rolling_shutter_refinement.hpp). The readout in frame intervals needs the frame rate
 // (the input's, 30 fps when it has none).
+// The clip's frame rate (30 fps when the input has none): the readout in frame intervals.
+double clipFps(const SolveRun& run) {
+  return run.source->info().fps > 0.0 ? run.source->info().fps : 30.0;
+}
+
+// The solver's tracks. With a given readout, the tracks moved to each frame's middle-row time:
+// the solve's two-view models (F, H and the tests of the motion between them, the focal from F,
+// the chained homographies of a tripod) are global-shutter models, and a rolling shutter's
+// shear otherwise reads as parallax (a panning camera is then not seen to rotate). The exact
+// model follows: the rolling-shutter refinement of a general solve (refineReadout), the tripod
+// solve's adjustment on the tracks as exposed (Solver::setExposedTracks).
+const TrackTable& solverTracks(SolveRun& run) {
+  if (!(run.o.readout_ms > 0.0)) return run.tracks;
+  run.so.readout_frames = run.o.readout_ms * clipFps(run) / 1000.0;
+  shiftTracksToReferenceRow(
+      run.tracks,
+      RollingShutter::fromReadout(run.so.readout_frames, run.height, 0.5 * (run.height - 1)),
+      run.reference_row_tracks);
+  return run.reference_row_tracks;
+}
+
 void refineReadout(SolveRun& run, const Solver& solver) {
   run.solved_frames = solver.frames();
   run.solved_points = solver.points();
   const bool given = run.o.readout_ms > 0.0;
   if (!(given || run.o.readout_auto) || solver.solvedFrames() == 0) return;
-  const double fps = run.source->info().fps > 0.0 ? run.source->info().fps : 30.0;
+  const double fps = clipFps(run);
   const SolverSummary s = solver.summary();
   CameraIntrinsics K = CameraIntrinsics::centered(run.width, run.height, s.focal_px);
   K.cx = s.cx;
@@ -541,7 +563,8 @@ int runSolve(const SolveCommandOptions& options) {
   for (const auto stage : {readGivenIntrinsics, openInputs, prepareOutputDir, trackClip,
                            finishTracks, checkIntrinsicsSize})
     if (const auto code = stage(run)) return *code;
-  Solver solver(run.tracks, run.width, run.height, run.so);
+  Solver solver(solverTracks(run), run.width, run.height, run.so);
+  if (run.so.readout_frames > 0.0) solver.setExposedTracks(&run.tracks);
   if (const auto code = solveStages(run, solver)) return *code;
   refineReadout(run, solver);
   buildReconstruction(run, solver);

@@ -69,6 +69,9 @@ struct SolveRun {
   // The tracking pass (solve_tracking.cpp).
   std::unique_ptr<ClipTracker> tracker;
   TrackTable tracks;
+  /// With --readout-ms: the tracks moved to each frame's middle-row time
+  /// (shiftTracksToReferenceRow), the solver's input; `tracks` stays as exposed.
+  TrackTable reference_row_tracks;
   std::unordered_map<int64_t, uint8_t> track_gray;  ///< each track's gray where first seen
   std::vector<int> features_per_frame;
   std::vector<double> timestamps;

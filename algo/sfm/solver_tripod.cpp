@@ -141,12 +141,14 @@ void Solver::refineTripod() {
   const int cameras = static_cast<int>(frame_of_camera.size());
   if (cameras < 2) return;
   std::vector<Eigen::Matrix3d> rotations;
-  std::vector<uint8_t> fixed(static_cast<std::size_t>(cameras), 0);
-  fixed[0] = 1;
+  // The first camera holds the gauge (the rotation of the whole rig is free). Built by push_back:
+  // armhf's g++ 12 cannot see that `cameras >= 2` and warns that fixed[0] may dereference null.
+  std::vector<uint8_t> fixed;
   std::vector<BaTrajectoryNeighbours> neighbours(static_cast<std::size_t>(cameras));
   for (int c = 0; c < cameras; ++c) {
     const int f = frame_of_camera[static_cast<std::size_t>(c)];
     rotations.push_back(frames_[static_cast<std::size_t>(f)].pose.R_cw);
+    fixed.push_back(c == 0 ? 1 : 0);
     auto& nb = neighbours[static_cast<std::size_t>(c)];
     nb.previous = f > 0 ? camera_of_frame[static_cast<std::size_t>(f - 1)] : -1;
     nb.next = f + 1 < n ? camera_of_frame[static_cast<std::size_t>(f + 1)] : -1;

@@ -349,4 +349,23 @@ ReadoutEstimate estimateReadout(const TrackTable& tracks, const RollingShutter& 
   return e;
 }
 
+void rotationTrajectoryMotions(const std::vector<SolvedFrame>& frames,
+                               std::vector<RollingShutterMotion>& motions) {
+  const int n = static_cast<int>(frames.size());
+  motions.assign(frames.size(), RollingShutterMotion{});
+  std::vector<BaCamera> cameras(frames.size());
+  for (std::size_t f = 0; f < frames.size(); ++f) cameras[f].R_cw = frames[f].pose.R_cw;
+  const auto solved = [&](int f) {
+    return f >= 0 && f < n && frames[static_cast<std::size_t>(f)].solved;
+  };
+  for (int f = 0; f < n; ++f) {
+    if (!solved(f)) continue;
+    BaTrajectoryNeighbours nb;
+    nb.previous = solved(f - 1) ? f - 1 : -1;
+    nb.next = solved(f + 1) ? f + 1 : -1;
+    motions[static_cast<std::size_t>(f)].angular =
+        BundleAdjuster::trajectoryMotion(cameras, nb, f, nullptr).angular;
+  }
+}
+
 }  // namespace epitrack

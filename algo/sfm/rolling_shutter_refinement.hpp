@@ -68,6 +68,13 @@ RollingShutterRefinementResult refineRollingShutter(const TrackTable& tracks, Ca
                                                     std::vector<RollingShutterMotion>& motions,
                                                     const RollingShutterRefinementOptions& options);
 
+/// Each frame's motion over the readout as the tripod solve's rotation-only adjustment modelled
+/// it (Solver::refineTripod with a readout): the trajectory's angular velocity at the frame
+/// (BundleAdjuster::trajectoryMotion: central differences of the solved neighbours' rotations,
+/// one-sided at a gap), no linear motion. One per frame; zero for unsolved frames.
+void rotationTrajectoryMotions(const std::vector<SolvedFrame>& frames,
+                               std::vector<RollingShutterMotion>& motions);
+
 /// The readout estimated from a refinement made with a nominal readout (issue 27, --readout auto).
 ///
 /// With a free motion per frame the readout is not observable by itself: the projection depends

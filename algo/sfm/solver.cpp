@@ -172,6 +172,10 @@ SolverSummary Solver::summary() const {
   s.centre_sd_percent = centre_sd_percent_;
   s.centre_sd_steps = centre_sd_steps_;
   s.path_length = path_length_;
+  s.tripod_rms_before_px = tripod_rms_before_px_;
+  s.tripod_rms_after_px = tripod_rms_after_px_;
+  s.tripod_iterations = tripod_iterations_;
+  s.tripod_rows_modelled = tripod_rows_modelled_;
   return s;
 }
 

@@ -242,6 +242,13 @@ struct SolverSummary {
   /// limits); negative: not measured.
   double centre_sd_steps = -1.0;
   double path_length = 0.0;  ///< of the solved centres in frame order (world units)
+  /// The tripod solve's rotation-only adjustment (Solver::refineTripod): RMS reprojection error
+  /// before and after, its iterations, and whether it modelled each row's time (rolling shutter).
+  /// tripod_iterations < 0: the adjustment did not run or was not kept.
+  double tripod_rms_before_px = 0.0;
+  double tripod_rms_after_px = 0.0;
+  int tripod_iterations = -1;
+  bool tripod_rows_modelled = false;
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -359,6 +366,8 @@ class Solver {
   bool tripod_ = false;
   double tripod_rms_before_px_ = 0.0;  // the rotation-only adjustment's RMS (0: not run)
   double tripod_rms_after_px_ = 0.0;
+  int tripod_iterations_ = -1;  // -1: not run or not kept
+  bool tripod_rows_modelled_ = false;
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA

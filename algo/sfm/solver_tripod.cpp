@@ -177,6 +177,8 @@ void Solver::refineTripod() {
         rotations[static_cast<std::size_t>(c)];
   tripod_rms_before_px_ = r.initial_rms_px;
   tripod_rms_after_px_ = r.final_rms_px;
+  tripod_iterations_ = r.iterations;
+  tripod_rows_modelled_ = rolling;
 }
 
 // The tripod test. A homography between two views of a rotating camera fits their tracks to the

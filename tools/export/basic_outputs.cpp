@@ -256,6 +256,15 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("sd_percent_of_path", rec.centre_sd_percent);
     j.endObject();
   }
+  if (rec.tripod_iterations >= 0) {
+    j.key("tripod_adjustment");
+    j.beginObject();
+    j.field("rms_before_px", rec.tripod_rms_before_px);
+    j.field("rms_after_px", rec.tripod_rms_after_px);
+    j.field("iterations", rec.tripod_iterations);
+    j.field("rows_modelled", rec.tripod_rows_modelled);
+    j.endObject();
+  }
   j.field("motion", rec.motion);
   if (!rec.matcher.empty()) j.field("matcher", rec.matcher);
   j.field("mean_reproj_px", mean_px);

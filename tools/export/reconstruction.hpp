@@ -168,6 +168,13 @@ struct Reconstruction {
   double centre_sd_percent = -1.0;
   double centre_sd_steps = -1.0;
   double centre_sd_limit_steps = 0.0;
+  /// A tripod solve's rotation-only adjustment (summary.json "tripod_adjustment"; iterations < 0:
+  /// not run): RMS reprojection error before and after, iterations, and whether it modelled each
+  /// row's time (a rolling shutter with --readout-ms).
+  double tripod_rms_before_px = 0.0;
+  double tripod_rms_after_px = 0.0;
+  int tripod_iterations = -1;
+  bool tripod_rows_modelled = false;
   /// When a stop signal ended the run early (status "interrupted"): the signal ("SIGINT",
   /// "SIGTERM"), the stage it stopped ("tracking", "calibration", ...) and, when the solve itself
   /// had finished, the solver's own status ("ok", "rotation-only", ...; empty otherwise).

@@ -224,6 +224,10 @@ void describeSolve(SolveRun& run, const Solver& solver) {
   rec.centre_sd_percent = summary.centre_sd_percent;
   rec.centre_sd_steps = summary.centre_sd_steps;
   rec.centre_sd_limit_steps = so.max_centre_sd_steps;
+  rec.tripod_rms_before_px = summary.tripod_rms_before_px;
+  rec.tripod_rms_after_px = summary.tripod_rms_after_px;
+  rec.tripod_iterations = summary.tripod_iterations;
+  rec.tripod_rows_modelled = summary.tripod_rows_modelled;
   if (!input_error.empty())
     rec.message = "input stopped early (" + input_error + "), frames after it are not solved" +
                   (rec.message.empty() ? std::string() : "; " + rec.message);
@@ -313,6 +317,23 @@ const TrackTable& solverTracks(SolveRun& run) {
   return run.reference_row_tracks;
 }
 
+// A tripod solve with a given readout: its rotation-only adjustment already modelled each row's
+// time on the tracks as exposed (Solver::refineTripod); the rolling_shutter block reports that
+// adjustment, and each frame's motion over the readout is the trajectory's rotation it modelled.
+void recordTripodReadout(SolveRun& run, const SolverSummary& s, double readout_frames) {
+  run.rec.readout_ms = run.o.readout_ms;
+  run.rec.readout_source = "given";
+  run.rec.readout_reference_row = 0.5 * (run.height - 1);
+  run.rec.readout_frames = readout_frames;
+  run.rec.readout_rms_before_px = s.tripod_rms_before_px;
+  run.rec.readout_rms_after_px = s.tripod_rms_after_px;
+  run.rec.readout_ba_iterations = s.tripod_iterations;
+  rotationTrajectoryMotions(run.solved_frames, run.motions);
+  run.progress.message("rolling shutter: the tripod adjustment modelled the " +
+                       std::to_string(run.o.readout_ms).substr(0, 5) + " ms readout");
+  run.clock.lap("rolling_shutter");
+}
+
 void refineReadout(SolveRun& run, const Solver& solver) {
   run.solved_frames = solver.frames();
   run.solved_points = solver.points();
@@ -320,6 +341,10 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   if (!(given || run.o.readout_auto) || solver.solvedFrames() == 0) return;
   const double fps = clipFps(run);
   const SolverSummary s = solver.summary();
+  if (given && s.tripod_iterations >= 0 && s.tripod_rows_modelled) {
+    recordTripodReadout(run, s, run.o.readout_ms * fps / 1000.0);
+    return;
+  }
   CameraIntrinsics K = CameraIntrinsics::centered(run.width, run.height, s.focal_px);
   K.cx = s.cx;
   K.cy = s.cy;

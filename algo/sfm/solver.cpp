@@ -176,6 +176,9 @@ SolverSummary Solver::summary() const {
   s.tripod_rms_after_px = tripod_rms_after_px_;
   s.tripod_iterations = tripod_iterations_;
   s.tripod_rows_modelled = tripod_rows_modelled_;
+  s.tripod_readout_frames = tripod_readout_frames_;
+  s.tripod_readout_std_error = tripod_readout_std_error_;
+  s.tripod_readout_applied = tripod_readout_frames_ >= 0.0 && tripod_rows_modelled_;
   return s;
 }
 

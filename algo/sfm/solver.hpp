@@ -94,6 +94,12 @@ struct SolverOptions {
   /// (shiftTracksToReferenceRow); a general solve is refined for the rolling shutter after the
   /// solve (refineRollingShutter), a rotating camera has no points for that.
   double readout_frames = 0.0;
+  /// Estimate the readout in the tripod solve's adjustment (epitrack-solve --readout auto; only
+  /// when readout_frames is 0, on the solver's tracks as exposed): the readout whose row model
+  /// fits best, with its standard error. Kept (the rotations and focal of that model) when above
+  /// three standard errors and readout_min_frames.
+  bool estimate_readout = false;
+  double readout_min_frames = 0.03;  ///< 1 ms at 30 fps
 };
 
 /// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the
@@ -249,6 +255,11 @@ struct SolverSummary {
   double tripod_rms_after_px = 0.0;
   int tripod_iterations = -1;
   bool tripod_rows_modelled = false;
+  /// SolverOptions::estimate_readout: the tripod adjustment's readout estimate and its standard
+  /// error (frame intervals; negative: not estimated), and whether it was kept.
+  double tripod_readout_frames = -1.0;
+  double tripod_readout_std_error = 0.0;
+  bool tripod_readout_applied = false;
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -323,6 +334,17 @@ class Solver {
   bool tripodSolve();
   /// The rotation-only adjustment of the tripod solve (SolverOptions::tripod_adjustment).
   void refineTripod();
+  struct TripodProblem;  // the adjustment's rotations, directions and observations
+  RotationAdjustmentSummary adjustTripod(RotationAdjuster& adjuster, TripodProblem& p,
+                                         double readout_frames, RotationAdjustmentOptions ro,
+                                         BaIntrinsics& k) const;
+  void keepTripodAdjustment(const TripodProblem& p, const std::vector<int>& frame_of_camera,
+                            const BaIntrinsics& k, const RotationAdjustmentSummary& r,
+                            bool rows_modelled);
+  /// SolverOptions::estimate_readout: the readout that fits the tripod adjustment best.
+  void estimateTripodReadout(RotationAdjuster& adjuster, const TripodProblem& start,
+                             const std::vector<int>& frame_of_camera,
+                             const RotationAdjustmentOptions& ro);
   void directionsAndObservations(const TrackTable& tracks, const std::vector<int>& camera_of_frame,
                                  const std::vector<Eigen::Matrix3d>& rotations,
                                  std::vector<Eigen::Vector3d>& directions,
@@ -368,6 +390,8 @@ class Solver {
   double tripod_rms_after_px_ = 0.0;
   int tripod_iterations_ = -1;  // -1: not run or not kept
   bool tripod_rows_modelled_ = false;
+  double tripod_readout_frames_ = -1.0;  // SolverOptions::estimate_readout (-1: not estimated)
+  double tripod_readout_std_error_ = 0.0;
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA

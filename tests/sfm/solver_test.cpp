@@ -558,3 +558,38 @@ TEST_CASE("A rolling-shutter fast pan on a tripod is a tripod solve once the rea
   INFO("walking: " << toString(s.status()) << " " << s.summary().message);
   CHECK(s.summary().motion != MotionClass::kRotationOnly);
 }
+
+TEST_CASE("The tripod adjustment estimates a rolling shutter's readout",
+          "[sfm][solver][tripod][rolling-shutter]") {
+  // --readout auto on a pan the global-shutter solve already sees as a tripod: the readout whose
+  // row model fits the tracks as exposed best, with its standard error; kept when significant.
+  constexpr double kTrackNoisePx = 0.1;
+  for (const double readout : {0.9, 0.0}) {
+    Clip pan;
+    makeTrackerClip(pan, synth::SceneKind::kPan, 60, 0.0, kTrackNoisePx, 1, readout);
+    SolverOptions o;
+    o.estimate_readout = true;
+    Solver s(pan.tracks, pan.options.width, pan.options.height, o);
+    REQUIRE(s.calibrate());
+    CHECK_FALSE(s.initialize());
+    const SolverSummary summary = s.summary();
+    const double worst = worstRelativeRotationDeg(pan, s);
+    std::printf(
+        "pan, readout %.1f: estimated %.4f +- %.4f, kept %d, worst rotation %.4f deg, "
+        "focal %.2f px\n",
+        readout, summary.tripod_readout_frames, summary.tripod_readout_std_error,
+        summary.tripod_readout_applied ? 1 : 0, worst, summary.focal_px);
+    INFO("readout " << readout << ": estimated " << summary.tripod_readout_frames << " +- "
+                    << summary.tripod_readout_std_error << ", worst rotation " << worst);
+    CHECK(s.status() == Solver::Status::kRotationOnly);
+    REQUIRE(summary.tripod_readout_frames >= 0.0);
+    CHECK(summary.tripod_readout_std_error > 0.0);
+    CHECK(std::abs(summary.tripod_readout_frames - readout) < 0.02);
+    CHECK(std::abs(summary.tripod_readout_frames - readout) <
+          4.0 * summary.tripod_readout_std_error + 0.002);
+    CHECK(summary.tripod_readout_applied == (readout > 0.0));
+    CHECK(summary.tripod_rows_modelled == (readout > 0.0));
+    CHECK(worst < 0.02);
+    CHECK(std::abs(summary.focal_px / pan.options.focal - 1.0) < 2e-3);
+  }
+}

@@ -414,6 +414,36 @@ TEST_CASE("A rolling-shutter pan on a tripod: --readout-ms models the rows in th
   CHECK(worst < 0.01);
 }
 
+TEST_CASE("A pan solved with --readout auto estimates the readout in the tripod adjustment",
+          "[solve][degenerate][tripod][rolling-shutter]") {
+  // Issue 27: a phone panning on a tripod, readout unknown (30 ms at 30 fps). The global-shutter
+  // solve finds the tripod, its adjustment estimates the readout and keeps the row model; the same
+  // pan with a global shutter estimates about zero and keeps the global-shutter solve.
+  TempDir dir("degenerate");
+  for (const double readout : {0.9, 0.0}) {
+    const std::string clip =
+        synth(dir, "pan" + std::to_string(readout),
+              "--scene pan --frames 60 --noise 1 --rolling-shutter " + std::to_string(readout));
+    const Outcome o = solve(dir, clip + "/frames", "--readout auto");
+    INFO("readout " << readout << ": " << o.summary.substr(0, 1200));
+    CHECK(o.exit_code == 0);
+    CHECK(o.status == "rotation-only");
+    const auto rs_at = o.summary.find("\"rolling_shutter\"");
+    REQUIRE(rs_at != std::string::npos);
+    const std::string rs = o.summary.substr(rs_at);
+    CHECK(jsonString(rs, "readout_source") == "estimated");
+    const double ms = jsonNumber(rs, "readout_ms");
+    const double error_ms = jsonNumber(rs, "readout_std_error_ms");
+    CHECK(error_ms > 0.0);
+    CHECK(error_ms < 1.0);
+    CHECK(std::abs(ms - readout * 1000.0 / 30.0) < std::max(0.6, 4.0 * error_ms));
+    const bool applied = readout > 0.0;
+    CHECK(rs.find(applied ? "\"readout_applied\": true" : "\"readout_applied\": false") !=
+          std::string::npos);
+    CHECK(readWholeFile(o.out + "/rolling_shutter.txt").empty() == !applied);
+  }
+}
+
 TEST_CASE("A fast pan that walks says its camera path is uncertain, a shake clip stays ok",
           "[solve][degenerate][slow]") {
   // Issue 20: this clip solved every frame, focal and rotations right, said "ok", and its path

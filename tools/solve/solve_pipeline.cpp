@@ -308,6 +308,10 @@ double clipFps(const SolveRun& run) {
 // model follows: the rolling-shutter refinement of a general solve (refineReadout), the tripod
 // solve's adjustment on the tracks as exposed (Solver::setExposedTracks).
 const TrackTable& solverTracks(SolveRun& run) {
+  // --readout auto: a tripod solve estimates the readout in its adjustment (on the tracks as
+  // exposed); a general solve after it (refineReadout).
+  run.so.estimate_readout = run.o.readout_auto;
+  run.so.readout_min_frames = 0.001 * clipFps(run);
   if (!(run.o.readout_ms > 0.0)) return run.tracks;
   run.so.readout_frames = run.o.readout_ms * clipFps(run) / 1000.0;
   shiftTracksToReferenceRow(
@@ -317,20 +321,33 @@ const TrackTable& solverTracks(SolveRun& run) {
   return run.reference_row_tracks;
 }
 
-// A tripod solve with a given readout: its rotation-only adjustment already modelled each row's
-// time on the tracks as exposed (Solver::refineTripod); the rolling_shutter block reports that
-// adjustment, and each frame's motion over the readout is the trajectory's rotation it modelled.
-void recordTripodReadout(SolveRun& run, const SolverSummary& s, double readout_frames) {
-  run.rec.readout_ms = run.o.readout_ms;
-  run.rec.readout_source = "given";
+// A tripod solve with a readout given or estimated (--readout auto): its rotation-only adjustment
+// modelled each row's time on the tracks as exposed (Solver::refineTripod); the rolling_shutter
+// block reports that adjustment, and each frame's motion over the readout is the trajectory's
+// rotation it modelled. An estimate not kept leaves the global-shutter solve as it is.
+void recordTripodReadout(SolveRun& run, const SolverSummary& s, double fps) {
+  const bool given = run.o.readout_ms > 0.0;
+  const double readout_frames = given ? run.o.readout_ms * fps / 1000.0 : s.tripod_readout_frames;
+  run.rec.readout_ms = readout_frames * 1000.0 / fps;
+  run.rec.readout_source = given ? "given" : "estimated";
   run.rec.readout_reference_row = 0.5 * (run.height - 1);
-  run.rec.readout_frames = readout_frames;
   run.rec.readout_rms_before_px = s.tripod_rms_before_px;
   run.rec.readout_rms_after_px = s.tripod_rms_after_px;
   run.rec.readout_ba_iterations = s.tripod_iterations;
-  rotationTrajectoryMotions(run.solved_frames, run.motions);
-  run.progress.message("rolling shutter: the tripod adjustment modelled the " +
-                       std::to_string(run.o.readout_ms).substr(0, 5) + " ms readout");
+  if (!given) {
+    run.rec.readout_std_error_ms = s.tripod_readout_std_error * 1000.0 / fps;
+    run.rec.readout_observable = s.tripod_readout_std_error <= 0.1;  // 3.3 ms at 30 fps
+    run.rec.readout_applied = s.tripod_readout_applied;
+    run.progress.message(
+        "rolling shutter: readout estimated " + std::to_string(run.rec.readout_ms).substr(0, 5) +
+        " ms +- " + std::to_string(run.rec.readout_std_error_ms).substr(0, 5) +
+        " ms by the tripod adjustment" +
+        (s.tripod_readout_applied ? "" : ", not used (global-shutter solve kept)"));
+  }
+  if (s.tripod_rows_modelled) {
+    run.rec.readout_frames = readout_frames;
+    rotationTrajectoryMotions(run.solved_frames, run.motions);
+  }
   run.clock.lap("rolling_shutter");
 }
 
@@ -341,8 +358,8 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   if (!(given || run.o.readout_auto) || solver.solvedFrames() == 0) return;
   const double fps = clipFps(run);
   const SolverSummary s = solver.summary();
-  if (given && s.tripod_iterations >= 0 && s.tripod_rows_modelled) {
-    recordTripodReadout(run, s, run.o.readout_ms * fps / 1000.0);
+  if ((given && s.tripod_rows_modelled) || (!given && s.tripod_readout_frames >= 0.0)) {
+    recordTripodReadout(run, s, fps);
     return;
   }
   CameraIntrinsics K = CameraIntrinsics::centered(run.width, run.height, s.focal_px);

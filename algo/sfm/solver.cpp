@@ -178,7 +178,8 @@ SolverSummary Solver::summary() const {
   s.tripod_rows_modelled = tripod_rows_modelled_;
   s.tripod_readout_frames = tripod_readout_frames_;
   s.tripod_readout_std_error = tripod_readout_std_error_;
-  s.tripod_readout_applied = tripod_readout_frames_ >= 0.0 && tripod_rows_modelled_;
+  s.tripod_readout_applied = tripod_readout_applied_;
+  s.rotation_refused = rotation_refused_;
   return s;
 }
 
@@ -455,6 +456,7 @@ bool Solver::initialize() {
   // with a degree of "parallax" between long-lived tracks.)
   if (best_score <= 0.0 && rotation_coherent) {
     const RotationCheck rotation = checkRotationModel();
+    rotation_refused_ = !rotation.holds;
     if (rotation.holds) {
       if (!tripodSolve()) {  // a failed tripod solve is a failed start, never "ok"
         status_ = Status::kInitFailed;

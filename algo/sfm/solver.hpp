@@ -94,10 +94,11 @@ struct SolverOptions {
   /// (shiftTracksToReferenceRow); a general solve is refined for the rolling shutter after the
   /// solve (refineRollingShutter), a rotating camera has no points for that.
   double readout_frames = 0.0;
-  /// Estimate the readout in the tripod solve's adjustment (epitrack-solve --readout auto; only
-  /// when readout_frames is 0, on the solver's tracks as exposed): the readout whose row model
-  /// fits best, with its standard error. Kept (the rotations and focal of that model) when above
-  /// three standard errors and readout_min_frames.
+  /// Estimate the readout in the tripod solve's adjustment (epitrack-solve --readout auto), on
+  /// the tracks as exposed (the solver's own when readout_frames is 0, else those of
+  /// setExposedTracks): the readout whose row model fits best, with its standard error. Kept
+  /// (the rotations and focal of that model) when above three standard errors and
+  /// readout_min_frames.
   bool estimate_readout = false;
   double readout_min_frames = 0.03;  ///< 1 ms at 30 fps
 };
@@ -257,6 +258,9 @@ struct SolverSummary {
   bool tripod_rows_modelled = false;
   /// SolverOptions::estimate_readout: the tripod adjustment's readout estimate and its standard
   /// error (frame intervals; negative: not estimated), and whether it was kept.
+  /// The short frame pairs fit rotations but the tripod test refused the widest windows
+  /// (checkRotationModel): a walking camera, or a rolling shutter's shear on a fast pan.
+  bool rotation_refused = false;
   double tripod_readout_frames = -1.0;
   double tripod_readout_std_error = 0.0;
   bool tripod_readout_applied = false;
@@ -298,6 +302,9 @@ class Solver {
   [[nodiscard]] Status status() const { return status_; }
   /// Status, intrinsics, focal source, motion and initial pair as they stand after the last stage.
   [[nodiscard]] SolverSummary summary() const;
+  /// The tripod test (checkRotationModel) on the solver's tracks, without a solve: epitrack-solve
+  /// --readout auto searches the readout that makes a fast pan's tracks a rotation.
+  [[nodiscard]] RotationCheck rotationCheck() const { return checkRotationModel(); }
   [[nodiscard]] const std::vector<SolvedFrame>& frames() const { return frames_; }
   [[nodiscard]] const std::vector<MapPoint>& points() const { return points_; }
   [[nodiscard]] const std::vector<PairFocal>& pairFocals() const { return pair_focals_; }
@@ -344,7 +351,7 @@ class Solver {
   /// SolverOptions::estimate_readout: the readout that fits the tripod adjustment best.
   void estimateTripodReadout(RotationAdjuster& adjuster, const TripodProblem& start,
                              const std::vector<int>& frame_of_camera,
-                             const RotationAdjustmentOptions& ro);
+                             const RotationAdjustmentOptions& ro, double initial_readout);
   void directionsAndObservations(const TrackTable& tracks, const std::vector<int>& camera_of_frame,
                                  const std::vector<Eigen::Matrix3d>& rotations,
                                  std::vector<Eigen::Vector3d>& directions,
@@ -392,6 +399,8 @@ class Solver {
   bool tripod_rows_modelled_ = false;
   double tripod_readout_frames_ = -1.0;  // SolverOptions::estimate_readout (-1: not estimated)
   double tripod_readout_std_error_ = 0.0;
+  bool tripod_readout_applied_ = false;
+  bool rotation_refused_ = false;  // SolverSummary::rotation_refused
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA

@@ -204,8 +204,7 @@ void Solver::refineTripod() {
   if (r.failed || !(r.final_rms_px <= r.initial_rms_px) || !(k.f > 0.0)) return;
   keepTripodAdjustment(p, frame_of_camera, k, r, rolling);
   tripod_rms_before_px_ = r.initial_rms_px;
-  if (options_.estimate_readout && !rolling)
-    estimateTripodReadout(adjuster, p, frame_of_camera, ro);
+  if (options_.estimate_readout) estimateTripodReadout(adjuster, p, frame_of_camera, ro, readout);
 }
 
 void Solver::keepTripodAdjustment(const TripodProblem& p, const std::vector<int>& frame_of_camera,
@@ -230,7 +229,7 @@ void Solver::keepTripodAdjustment(const TripodProblem& p, const std::vector<int>
 // one.
 void Solver::estimateTripodReadout(RotationAdjuster& adjuster, const TripodProblem& start,
                                    const std::vector<int>& frame_of_camera,
-                                   const RotationAdjustmentOptions& ro) {
+                                   const RotationAdjustmentOptions& ro, double initial_readout) {
   const double rms0 = tripod_rms_after_px_;
   // Each trial starts from the global-shutter adjustment (`start`, its focal in f_).
   const auto trial = [&](double readout, TripodProblem& p, BaIntrinsics& k) {
@@ -244,8 +243,12 @@ void Solver::estimateTripodReadout(RotationAdjuster& adjuster, const TripodProbl
     const RotationAdjustmentSummary r = trial(readout, p, k);
     return r.failed ? std::numeric_limits<double>::quiet_NaN() : r.final_rms_px * r.final_rms_px;
   };
-  ParabolaFit fit =
-      fitParabola({0.0, 0.5, 1.0}, {rms0 * rms0, sumOfSquares(0.5), sumOfSquares(1.0)});
+  // The adjustment just made is one of the trials (at 0, or at the readout the tracks were moved
+  // to by --readout auto's search for a fast pan, see solve_pipeline.cpp).
+  const auto at = [&](double readout) {
+    return readout == initial_readout ? rms0 * rms0 : sumOfSquares(readout);
+  };
+  ParabolaFit fit = fitParabola({0.0, 0.5, 1.0}, {at(0.0), at(0.5), at(1.0)});
   if (!fit.valid) return;
   const double h = 0.1;
   const double centre = std::clamp(fit.vertex, h, 1.0 - h);
@@ -265,8 +268,9 @@ void Solver::estimateTripodReadout(RotationAdjuster& adjuster, const TripodProbl
   TripodProblem p;
   BaIntrinsics k;
   const RotationAdjustmentSummary r = trial(tripod_readout_frames_, p, k);
-  if (r.failed || !(r.final_rms_px <= rms0) || !(k.f > 0.0)) return;
+  if (r.failed || !(r.final_rms_px <= rms0 * 1.001) || !(k.f > 0.0)) return;
   keepTripodAdjustment(p, frame_of_camera, k, r, true);
+  tripod_readout_applied_ = true;
 }
 
 RotationAdjustmentSummary Solver::adjustTripod(RotationAdjuster& adjuster, TripodProblem& p,

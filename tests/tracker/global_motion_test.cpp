@@ -134,3 +134,59 @@ TEST_CASE("GlobalMotionEstimator gives the same model for the same points", "[gl
   CHECK(mc.tx == ma.tx);
   CHECK(modelDistance(ma, truth) < 0.01);
 }
+
+TEST_CASE("GlobalMotionEstimator fits a rolling shutter's row term, and only when it is there",
+          "[global-motion][rolling-shutter]") {
+  // A jerk under a rolling shutter: the rows move by up to 0.03 px per row more than the first
+  // (17 px over 576 rows), 25 % outliers. The similarity alone leaves the far rows out; with the
+  // row term the model is recovered. A plain similarity keeps rx = ry = 0 exactly.
+  double worst = 0.0;
+  for (uint64_t seed = 1; seed <= 100; ++seed) {
+    SplitMix64 rng(seed);
+    for (const bool rows : {true, false}) {
+      SimilarityMotion truth =
+          makeSimilarity(0.99 + 0.02 * rng.uniform(), -2.0 + 4.0 * rng.uniform(),
+                         -30.0 + 60.0 * rng.uniform(), -30.0 + 60.0 * rng.uniform());
+      if (rows) {
+        truth.rx = (rng.uniform() < 0.5 ? -1.0 : 1.0) * (0.015 + 0.015 * rng.uniform());
+        truth.ry = -0.02 + 0.04 * rng.uniform();
+      }
+      GlobalMotionOptions with_rows;
+      with_rows.row_term = true;
+      GlobalMotionOptions similarity_only;
+      similarity_only.row_term = false;
+      GlobalMotionEstimator estimator(with_rows), similarity(similarity_only);
+      for (int i = 0; i < 48; ++i) {
+        const double x = 704.0 * rng.uniform(), y = 576.0 * rng.uniform();
+        double qx = 0.0, qy = 0.0;
+        truth.apply(x, y, qx, qy);
+        if (i % 4 == 0) {  // 25 %: 5-60 px off
+          const double r = 5.0 + 55.0 * rng.uniform(), phi = 2.0 * kPi * rng.uniform();
+          qx += r * std::cos(phi);
+          qy += r * std::sin(phi);
+        } else {
+          qx += 0.4 * (rng.uniform() - 0.5);
+          qy += 0.4 * (rng.uniform() - 0.5);
+        }
+        REQUIRE(estimator.add(x, y, qx, qy));
+        REQUIRE(similarity.add(x, y, qx, qy));
+      }
+      SimilarityMotion fit, plain;
+      REQUIRE(estimator.estimate(fit) == GlobalMotionEstimator::Status::kOk);
+      const auto plain_status = similarity.estimate(plain);
+      INFO("seed " << seed << (rows ? ", row term" : ", similarity"));
+      CHECK(estimator.inlierCount() >= 36);
+      if (rows) {
+        worst = std::max(worst, modelDistance(fit, truth));
+        // The similarity alone takes in fewer points (or none: no consensus).
+        CHECK((plain_status != GlobalMotionEstimator::Status::kOk ||
+               similarity.inlierCount() + 7 <= estimator.inlierCount()));
+      } else {
+        CHECK(fit.rx == 0.0);
+        CHECK(fit.ry == 0.0);
+        CHECK(modelDistance(fit, truth) < 0.3);
+      }
+    }
+  }
+  CHECK(worst < 0.4);
+}

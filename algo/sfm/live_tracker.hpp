@@ -51,11 +51,15 @@ class LiveTracker {
     const auto features = tracker_.features();
     out.map = map_.process(features);
     out.features = static_cast<int>(features.size());
-    // The pose history of the constant-velocity prediction: consecutive tracked frames only.
+    // The pose history of the constant-velocity prediction: consecutive tracked frames only, and
+    // not a repeated frame (the tracker kept it out of its filters: the camera did not move by a
+    // frame's motion; a zero step in the history would predict the next new frame where the
+    // camera was).
     if (out.map.status != LiveStatus::kTracking) {
       tracked_poses_ = 0;
       return;
     }
+    if (tracker_.lastStats().repeated != 0) return;
     previous_pose_ = last_pose_;
     last_pose_ = out.map.pose;
     tracked_poses_ = std::min(tracked_poses_ + 1, 2);

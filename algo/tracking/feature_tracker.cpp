@@ -530,7 +530,20 @@ int FeatureTracker::probeAnchors(int per_cell, int skip_first_per_cell) {
     float qx = static_cast<float>(px), qy = static_cast<float>(py);
     PatchShape shape = t.shape;
     float residual = 0.0f;
-    LkStatus status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
+    LkStatus status = LkStatus::kNoConvergence;
+    // A supplied prediction (the map's) finds the anchor from a fine level; the motion is still
+    // measured against the anchor's own prediction (px, py).
+    if (const TrackPrediction* supplied = suppliedPrediction(t.id); supplied != nullptr) {
+      Candidate probe;
+      probe.shape = t.shape;
+      if (alignFromSupplied(static_cast<int>(s), *supplied, probe)) {
+        status = LkStatus::kTracked;
+        qx = probe.x;
+        qy = probe.y;
+      }
+    }
+    if (status != LkStatus::kTracked)
+      status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
     if (status != LkStatus::kTracked && options_.kalman_gate) {
       // Shake reverses: once more from where the track would be had the camera not kept the
       // last frame's change of velocity.

@@ -200,6 +200,14 @@ const std::map<std::string, Key>& keyTable() {
         0, 10000, [](C& c) -> int& { return c.tracker.redetect_cells; });
     t["min_distance"] = realKey("minimum distance between features, px", 1.0, 200.0,
                                 [](C& c) -> double& { return c.tracker.min_distance; });
+    t["map_prediction"] = boolKey(
+        "predict the tracks with the map: constant-velocity pose, the map points projected (LK's "
+        "start and the gate's centre)",
+        [](C& c) -> bool& { return c.map.map_prediction; });
+    t["map_prediction_radius"] = realKey(
+        "px: how far LK may land from a map prediction before the track's own prediction is used "
+        "(it also sets LK's start level)",
+        0.5, 200.0, [](C& c) -> double& { return c.tracker.prediction_radius_px; });
     t["max_points"] =
         intKey("map point capacity", 64, 1000000, [](C& c) -> int& { return c.map.max_points; });
     t["max_keyframes"] = intKey("keyframes kept (a ring)", 3, 1000,

@@ -24,6 +24,14 @@ inline Eigen::Vector2d undistortPixel(const CameraIntrinsics& K, double x, doubl
   return p;
 }
 
+/// Pixel of the normalized undistorted point `p`: the radial model of CameraIntrinsics applied,
+/// then the focal and principal point (the inverse of undistortPixel).
+inline Eigen::Vector2d distortToPixel(const CameraIntrinsics& K, const Eigen::Vector2d& p) {
+  const double r2 = p.squaredNorm();
+  const double s = 1.0 + K.k1 * r2 + K.k2 * r2 * r2;
+  return {K.cx + K.fx * s * p.x(), K.cy + K.fy * s * p.y()};
+}
+
 /// Normalized undistorted coordinates of the normalized distorted point `d` under the radial
 /// model p_d = p (1 + k1 r^2 + k2 r^4), by Newton's method on the radius (r + k1 r^3 + k2 r^5 =
 /// |d|). The fixed-point iteration of undistortPixel contracts only while |2 k1 r^2| is well

@@ -497,6 +497,24 @@ bool LiveMap::tryInitialize(LiveFrameResult& result) {
 // ---------------------------------------------------------------------------------------------
 // Tracking: resection on the map (paper §5.4), keyframes, new points, windowed adjustment.
 
+int LiveMap::predictTracks(const PoseCw& pose, std::span<TrackPrediction> out) const {
+  if (state_ != State::kTracking) return 0;
+  const double max_x = static_cast<double>(K_.width - 1);
+  const double max_y = static_cast<double>(K_.height - 1);
+  int n = 0;
+  for (int i = 0; i < record_count_ && static_cast<std::size_t>(n) < out.size(); ++i) {
+    const auto& r = records_[static_cast<std::size_t>(i)];
+    if (r.point < 0 || !points_[static_cast<std::size_t>(r.point)].valid) continue;
+    const Eigen::Vector3d X_c = pose.toCamera(points_[static_cast<std::size_t>(r.point)].X);
+    if (!(X_c.z() > 0.0)) continue;
+    const Eigen::Vector2d px = distortToPixel(K_, X_c.hnormalized());
+    if (!(px.x() >= 0.0 && px.y() >= 0.0 && px.x() <= max_x && px.y() <= max_y)) continue;
+    out[static_cast<std::size_t>(n++)] =
+        TrackPrediction{r.id, static_cast<float>(px.x()), static_cast<float>(px.y())};
+  }
+  return n;
+}
+
 bool LiveMap::trackFrame(LiveFrameResult& result) {
   int m = 0;
   for (int i = 0; i < record_count_; ++i) {

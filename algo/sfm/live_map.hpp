@@ -75,6 +75,11 @@ struct LiveMapOptions {
   int calib_max_pairs = 24;               ///< a ring: the newest pairs are kept
   int calib_max_frames = 450;             ///< no observable focal by then: the fallback focal
   double fallback_focal_widths = 1.2;     ///< fallback focal, x max(width, height)
+  /// The live loop (LiveTracker) predicts the next frame's tracks with the map: the pose by
+  /// constant velocity from the last two tracked frames, the map points of the live tracks
+  /// projected with it (predictTracks), handed to the FeatureTracker as LK's start and the
+  /// gate's centre (FeatureTrackerOptions::prediction_radius_px).
+  bool map_prediction = true;
 };
 
 enum class LiveStatus { kInitializing, kTracking, kLost };
@@ -139,6 +144,10 @@ class LiveMap {
 
   /// One frame's tracks (at most max_features, ids as the FeatureTracker gives them).
   LiveFrameResult process(std::span<const TrackedFeature> features);
+  /// Where the live tracks with a usable map point are seen by a camera of pose `pose` (in
+  /// pixels, with the lens distortion), into `out` (room for max_features); returns the count.
+  /// Points behind the camera or projecting outside the image are left out.
+  int predictTracks(const PoseCw& pose, std::span<TrackPrediction> out) const;
   /// Forgets the map and starts initialising again from the next frame.
   void reset();
 

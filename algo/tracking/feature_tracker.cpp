@@ -93,6 +93,15 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options, int width, 
   corners_.resize(n);
   output_.resize(n);
   lost_.resize(n);
+  predictions_.resize(n);
+  // The finest level on which LK's reach (a quarter of the window, in that level's pixels)
+  // covers the prediction radius.
+  const double reach = 0.25 * static_cast<double>(options_.window);
+  while (prediction_start_level_ < options_.levels &&
+         options_.prediction_radius_px >
+             reach * static_cast<double>(1 << prediction_start_level_)) {
+    ++prediction_start_level_;
+  }
   if (options_.redetect_cells > 0 && width > 0 && height > 0) {
     // Cells about square: cols / rows follows the image's aspect.
     const double cells = options_.redetect_cells;
@@ -235,7 +244,8 @@ bool FeatureTracker::forwardBackward(float x0, float y0, float x, float y, float
          static_cast<float>(options_.forward_backward_px * options_.forward_backward_px);
 }
 
-bool FeatureTracker::gateAccepts(const KalmanFilterCv& kalman, double mx, double my) const {
+bool FeatureTracker::gateAccepts(const KalmanFilterCv& kalman, double mx, double my, double cx,
+                                 double cy) const {
   const auto& P = kalman.covariance();
   const double r2 = kalman.options().measurement_sigma * kalman.options().measurement_sigma;
   const double speed = std::hypot(kalman.vx(), kalman.vy());
@@ -245,40 +255,88 @@ bool FeatureTracker::gateAccepts(const KalmanFilterCv& kalman, double mx, double
   const double s01 = P(0, 1);
   const double det = s00 * s11 - s01 * s01;
   if (!(det > 0.0)) return false;
-  const double nx = mx - kalman.x();
-  const double ny = my - kalman.y();
+  const double nx = mx - cx;
+  const double ny = my - cy;
   // Squared Mahalanobis distance under the 2x2 innovation covariance (the paper §4.2).
   const double d2 = (s11 * nx * nx - 2.0 * s01 * nx * ny + s00 * ny * ny) / det;
   return d2 <= kalman.options().gate_chi2;
 }
 
-void FeatureTracker::alignOne(std::size_t s, bool young) {
-  Track& t = tracks_[s];
-  const Pyramid& pyramid = pyramids_[current_];
-  const int slot = static_cast<int>(s);
-  const float x0 = t.x;
-  const float y0 = t.y;
-  // The prediction: an established track's is its Kalman filter's (its own constant velocity
-  // plus this frame's global motion, predictAll), a young track's the neighbours' motion.
-  float px = x0;
-  float py = y0;
+void FeatureTracker::setPredictions(std::span<const TrackPrediction> predictions) {
+  const std::size_t n = std::min(predictions.size(), predictions_.size());
+  std::copy_n(predictions.begin(), n, predictions_.begin());
+  const auto end = predictions_.begin() + static_cast<std::ptrdiff_t>(n);
+  std::sort(predictions_.begin(), end,
+            [](const TrackPrediction& a, const TrackPrediction& b) { return a.id < b.id; });
+  prediction_count_ = static_cast<int>(n);
+}
+
+const TrackPrediction* FeatureTracker::suppliedPrediction(int32_t id) const {
+  const auto end = predictions_.begin() + prediction_count_;
+  const auto it =
+      std::lower_bound(predictions_.begin(), end, id,
+                       [](const TrackPrediction& p, int32_t wanted) { return p.id < wanted; });
+  return it != end && it->id == id ? &*it : nullptr;
+}
+
+bool FeatureTracker::alignFromSupplied(int slot, const TrackPrediction& p, Candidate& c) {
+  c.x = p.x;
+  c.y = p.y;
+  c.status =
+      lk_.align(slot, pyramids_[current_], c.x, c.y, c.shape, c.residual, prediction_start_level_);
+  if (c.status != LkStatus::kTracked) return false;
+  const double ex = static_cast<double>(c.x) - static_cast<double>(p.x);
+  const double ey = static_cast<double>(c.y) - static_cast<double>(p.y);
+  return ex * ex + ey * ey <= options_.prediction_radius_px * options_.prediction_radius_px;
+}
+
+void FeatureTracker::ownPrediction(const Track& t, bool young, float& px, float& py) {
   if (young) {
-    if (options_.neighbour_prior) {
-      float dx = 0.0f, dy = 0.0f;
-      neighbourMotion(x0, y0, dx, dy);
-      px += dx;
-      py += dy;
-    }
+    if (!options_.neighbour_prior) return;
+    float dx = 0.0f, dy = 0.0f;
+    neighbourMotion(t.x, t.y, dx, dy);
+    px += dx;
+    py += dy;
   } else if (options_.kalman_gate) {
     px = static_cast<float>(t.kalman.x());
     py = static_cast<float>(t.kalman.y());
   } else {
-    double gx = x0, gy = y0;
-    motion_.apply(x0, y0, gx, gy);
+    double gx = t.x, gy = t.y;
+    motion_.apply(t.x, t.y, gx, gy);
     px = static_cast<float>(gx);
     py = static_cast<float>(gy);
   }
+}
+
+void FeatureTracker::alignOne(std::size_t s, bool young) {
+  Track& t = tracks_[s];
+  const int slot = static_cast<int>(s);
+  const float x0 = t.x;
+  const float y0 = t.y;
+  // The track's own prediction: an established track's is its Kalman filter's (its own constant
+  // velocity plus this frame's global motion, predictAll), a young track's the neighbours' motion.
+  float px = x0;
+  float py = y0;
+  ownPrediction(t, young, px, py);
   Candidate& c = t.candidate;
+  c.shape = t.shape;
+  c.residual = 0.0f;
+  c.supplied = false;
+  // A supplied prediction (the live map's) first; where it fails, the track's own.
+  const TrackPrediction* supplied = young ? nullptr : suppliedPrediction(t.id);
+  if (supplied != nullptr) {
+    ++stats_.predicted;
+    const long before = lk_.iterations();
+    c.supplied = alignFromSupplied(slot, *supplied, c);
+    stats_.predicted_iterations += lk_.iterations() - before;
+    if (c.supplied) {
+      c.predicted_x = supplied->x;
+      c.predicted_y = supplied->y;
+      return finishAlignment(t, young, x0, y0);
+    }
+    ++stats_.prediction_fallbacks;
+  }
+  const Pyramid& pyramid = pyramids_[current_];
   c.x = px;
   c.y = py;
   c.residual = 0.0f;
@@ -472,7 +530,20 @@ int FeatureTracker::probeAnchors(int per_cell, int skip_first_per_cell) {
     float qx = static_cast<float>(px), qy = static_cast<float>(py);
     PatchShape shape = t.shape;
     float residual = 0.0f;
-    LkStatus status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
+    LkStatus status = LkStatus::kNoConvergence;
+    // A supplied prediction (the map's) finds the anchor from a fine level; the motion is still
+    // measured against the anchor's own prediction (px, py).
+    if (const TrackPrediction* supplied = suppliedPrediction(t.id); supplied != nullptr) {
+      Candidate probe;
+      probe.shape = t.shape;
+      if (alignFromSupplied(static_cast<int>(s), *supplied, probe)) {
+        status = LkStatus::kTracked;
+        qx = probe.x;
+        qy = probe.y;
+      }
+    }
+    if (status != LkStatus::kTracked)
+      status = lk_.align(static_cast<int>(s), pyramid, qx, qy, shape, residual);
     if (status != LkStatus::kTracked && options_.kalman_gate) {
       // Shake reverses: once more from where the track would be had the camera not kept the
       // last frame's change of velocity.
@@ -712,6 +783,7 @@ void FeatureTracker::keepRepeatedFrame() {
   publishTracks();
   ++frame_index_;
   skipped_frames_ = 0;
+  prediction_count_ = 0;
 }
 
 FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
@@ -766,7 +838,10 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
       if (!t.live || t.age == 0 || c.status != LkStatus::kTracked || !options_.kalman_gate) {
         continue;
       }
-      c.gate_ok = gateAccepts(t.kalman, c.x, c.y);
+      // A supplied prediction centres the gate (the filter's covariance still sizes it).
+      const double cx = c.supplied ? static_cast<double>(c.predicted_x) : t.kalman.x();
+      const double cy = c.supplied ? static_cast<double>(c.predicted_y) : t.kalman.y();
+      c.gate_ok = gateAccepts(t.kalman, c.x, c.y, cx, cy);
       ++judged;
       failed += c.gate_ok ? 0 : 1;
     }
@@ -794,6 +869,7 @@ FeatureTracker::Status FeatureTracker::track(ImageView<const uint8_t> frame,
   if (frame_index_ > 0) last_motion_ = motion_;
   ++frame_index_;
   skipped_frames_ = 0;
+  prediction_count_ = 0;  // the predictions were for this frame only
   return Status::kOk;
 }
 

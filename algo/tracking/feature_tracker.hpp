@@ -166,6 +166,19 @@ struct FeatureTrackerOptions {
   /// fail it in one frame, the frame moved, not the tracks: the gate is not applied that frame.
   double gate_release_fraction = 0.5;
   int gate_release_min = 10;
+  /// Predictions supplied from outside (setPredictions: the live map's projections of its points
+  /// under a predicted pose). LK starts on the finest pyramid level whose reach covers this many
+  /// pixels (its window's quarter, scaled by the level), and a track that does not converge there,
+  /// or lands farther than this from the prediction, is aligned again from its own prediction as
+  /// if it had none (the map point may be wrong: a poorly triangulated one, a drifted track).
+  double prediction_radius_px = 4.0;
+};
+
+/// A supplied position of a track in the next frame (FeatureTracker::setPredictions).
+struct TrackPrediction {
+  int32_t id = 0;
+  float x = 0.0f;
+  float y = 0.0f;
 };
 
 /// Why a track was dropped (see FeatureTracker::lost).
@@ -218,9 +231,12 @@ struct FrameStats {
   int forward_backward_checks = 0;
   double residual_median = 0.0;  ///< the frame's typical relative residual (the scale)
   long lk_iterations = 0;
-  int motion_anchors = 0;  ///< anchor tracks aligned for the global motion
-  int motion_inliers = 0;  ///< ... that agree with it (0: no model, the last one kept)
-  double motion_dx = 0.0;  ///< the global motion at the image centre, px
+  int predicted = 0;              ///< tracks aligned from a supplied prediction (setPredictions)
+  int prediction_fallbacks = 0;   ///< ... of them aligned again from their own prediction
+  long predicted_iterations = 0;  ///< LK iterations of the tracks with a supplied prediction
+  int motion_anchors = 0;         ///< anchor tracks aligned for the global motion
+  int motion_inliers = 0;         ///< ... that agree with it (0: no model, the last one kept)
+  double motion_dx = 0.0;         ///< the global motion at the image centre, px
   double motion_dy = 0.0;
   int repeated = 0;       ///< 1: the frame repeated the previous one; tracks kept, nothing aligned
   int gate_released = 0;  ///< tracks let through because the whole frame failed the gate
@@ -258,6 +274,10 @@ class FeatureTracker {
     measurement_hook_ = hook;
     measurement_hook_context_ = context;
   }
+  /// Positions where tracks are expected in the next frame, by id (at most max_features; more are
+  /// ignored). Used by the next `track` call only: a track with one starts LK there (see
+  /// prediction_radius_px) and its gate is centred there; the others keep their own prediction.
+  void setPredictions(std::span<const TrackPrediction> predictions);
   [[nodiscard]] const FeatureTrackerOptions& options() const { return options_; }
   [[nodiscard]] int frameCount() const { return frame_index_; }
   [[nodiscard]] const Pyramid& pyramid() const { return pyramids_[current_]; }
@@ -271,7 +291,8 @@ class FeatureTracker {
     float residual = 0.0f;
     PatchShape shape;
     LkStatus status = LkStatus::kNoConvergence;
-    bool gate_ok = true;  // inside the Kalman gate (judged before the per-track decisions)
+    bool gate_ok = true;    // inside the Kalman gate (judged before the per-track decisions)
+    bool supplied = false;  // aligned from a supplied prediction (setPredictions)
   };
   struct Track {
     int32_t id = 0;
@@ -343,8 +364,16 @@ class FeatureTracker {
   /// (px, py): its patch at (x, y) in this frame, aligned back into the previous frame from the
   /// mirrored prediction, must land within forward_backward_px of (x0, y0).
   bool forwardBackward(float x0, float y0, float x, float y, float px, float py);
-  /// The Kalman gate with the innovation covariance widened in proportion to the speed.
-  bool gateAccepts(const KalmanFilterCv& kalman, double mx, double my) const;
+  /// The Kalman gate centred on (cx, cy), with the innovation covariance widened in proportion to
+  /// the speed.
+  bool gateAccepts(const KalmanFilterCv& kalman, double mx, double my, double cx, double cy) const;
+  /// Track `t`'s own prediction for this frame into (px, py) (its last position on entry).
+  void ownPrediction(const Track& t, bool young, float& px, float& py);
+  /// The supplied prediction of track `id` for this frame, or nullptr.
+  [[nodiscard]] const TrackPrediction* suppliedPrediction(int32_t id) const;
+  /// Aligns candidate `c` of track `slot` from a supplied prediction `p` on the level the radius
+  /// needs; false when it did not converge within prediction_radius_px of it.
+  bool alignFromSupplied(int slot, const TrackPrediction& p, Candidate& c);
 
   FeatureTrackerOptions options_;
   int width_ = 0;
@@ -358,7 +387,10 @@ class FeatureTracker {
   std::vector<Point2f> live_points_;  // scratch for the detector
   std::vector<Corner> corners_;       // scratch for the detector
   std::vector<TrackedFeature> output_;
-  std::vector<LostTrack> lost_;  // max_features slots
+  std::vector<LostTrack> lost_;               // max_features slots
+  std::vector<TrackPrediction> predictions_;  // max_features, sorted by id (setPredictions)
+  int prediction_count_ = 0;
+  int prediction_start_level_ = 0;  // LK's start level for a supplied prediction
   int lost_count_ = 0;
   MeasurementHook measurement_hook_ = nullptr;
   void* measurement_hook_context_ = nullptr;

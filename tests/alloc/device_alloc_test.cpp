@@ -12,7 +12,8 @@
 // heap allocation from the first frame on: 500 replayed frames of a rendered orbit, including the
 // initialisation, keyframes with triangulation and windowed bundle adjustment, a tracking loss
 // (blank frames) and the re-initialisation after it; with self-calibration; with a rolling-shutter
-// readout.
+// readout. The map's track predictions (LiveMapOptions::map_prediction, on by default) run on
+// every tracked frame.
 
 using epitrack::Image;
 using epitrack::test::AllocationScope;
@@ -66,7 +67,9 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
   epitrack::LiveTracker tracker(to, mo, K);
   epitrack::LiveFrameOutput out;
 
+  REQUIRE(mo.map_prediction);
   int tracking = 0, lost = 0, initializations = 0, keyframes = 0;
+  long predicted = 0;  // tracks aligned from a map prediction
   std::size_t allocations = 0;
   for (int i = 0; i < kFrames; ++i) {
     AllocationScope scope;
@@ -77,17 +80,19 @@ TEST_CASE("The live device loop allocates nothing over 500 replayed frames", "[a
     lost += out.map.status == epitrack::LiveStatus::kLost ? 1 : 0;
     initializations += out.map.initialized ? 1 : 0;
     keyframes += out.map.keyframe ? 1 : 0;
+    predicted += tracker.tracker().lastStats().predicted;
   }
   std::printf(
       "device alloc: %d tracking, %d lost, %d initialisations, %d keyframes, %d points, "
-      "map %.2f MiB reserved\n",
-      tracking, lost, initializations, keyframes, tracker.map().pointCount(),
+      "%ld tracks predicted by the map, map %.2f MiB reserved\n",
+      tracking, lost, initializations, keyframes, tracker.map().pointCount(), predicted,
       static_cast<double>(tracker.map().reservedBytes()) / (1024.0 * 1024.0));
   // The run covered every path of the loop.
   CHECK(initializations >= 2);
   CHECK(lost >= 1);
   CHECK(keyframes >= 10);
   CHECK(tracking > 400);
+  CHECK(predicted > 100L * tracking);  // the prediction path ran on the tracked frames
   CHECK(allocations == 0);
 
   // Without intrinsics: self-calibration (F and H RANSAC per pair, the multi-pair focal search)

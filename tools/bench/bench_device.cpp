@@ -45,6 +45,7 @@ int runDevice(int argc, const char* const* argv) {
   double focal = 0.0;
   std::string lk_affine = "true";
   std::string redetect_fill = "share";
+  std::string map_prediction = "on";
   tools::CommandLine cl(
       "epitrack-bench device",
       "[INPUT --intrinsics FILE] [--size WxH] [--scene orbit|handheld|...] [--features N] "
@@ -80,6 +81,11 @@ int runDevice(int argc, const char* const* argv) {
             "with --redetect-cells: a searched cell takes corners up to its share (default) or "
             "the strongest of the searched cells up to the feature count",
             &redetect_fill);
+  cl.choice("map-prediction", {"on", "off"},
+            "predict the tracks with the map's points under a constant-velocity pose (default on)",
+            &map_prediction);
+  cl.real("map-prediction-radius", "PX", "how far LK may land from a map prediction (default 4)",
+          &to.prediction_radius_px, 0.5, 200.0);
   if (const auto r = cl.parse(argc, argv); r != tools::CommandLine::Result::kOk)
     return tools::CommandLine::exitCode(r);
 
@@ -121,9 +127,12 @@ int runDevice(int argc, const char* const* argv) {
   to.redetect_fill_share = redetect_fill == "share";
   LiveMapOptions mo;
   mo.max_features = features;
+  mo.map_prediction = map_prediction == "on";
 
   std::vector<double> total_ms, cpu_ms, track_ms, map_ms, keyframe_ms;
   int tracking = 0, lost = 0, timed = 0;
+  // LK work per timed frame: all iterations, and the tracks started from a map prediction.
+  double lk_iterations = 0.0, predicted = 0.0, predicted_iterations = 0.0, fallbacks = 0.0;
   for (int r = 0; r < repeat; ++r) {
     LiveTracker tracker(to, mo, K);
     LiveFrameOutput out;
@@ -149,6 +158,11 @@ int runDevice(int argc, const char* const* argv) {
       track_ms.push_back(ms_track);
       map_ms.push_back(ms - ms_track);
       if (out.map.keyframe) keyframe_ms.push_back(ms);
+      const FrameStats& fs = tracker.tracker().lastStats();
+      lk_iterations += static_cast<double>(fs.lk_iterations);
+      predicted += fs.predicted;
+      predicted_iterations += static_cast<double>(fs.predicted_iterations);
+      fallbacks += fs.prediction_fallbacks;
       tracking += out.map.status == LiveStatus::kTracking ? 1 : 0;
       lost += out.map.status == LiveStatus::kLost ? 1 : 0;
     }
@@ -156,6 +170,7 @@ int runDevice(int argc, const char* const* argv) {
   const TimingStats t = summarize(total_ms);
   const TimingStats k = summarize(keyframe_ms);
   const TimingStats c = summarize(cpu_ms);
+  const double per_frame = 1.0 / std::max(timed, 1);
   JsonLine()
       .add("bench", "device")
       .add("impl", "epitrack")
@@ -180,6 +195,11 @@ int runDevice(int argc, const char* const* argv) {
       .add("keyframes", keyframe_ms.size())
       .add("keyframe_ms_median", k.median)
       .add("keyframe_ms_max", k.max)
+      .add("map_prediction", mo.map_prediction)
+      .add("lk_iterations_per_frame", lk_iterations * per_frame)
+      .add("map_predicted_per_frame", predicted * per_frame)
+      .add("map_predicted_iterations_per_frame", predicted_iterations * per_frame)
+      .add("map_prediction_fallbacks_per_frame", fallbacks * per_frame)
       .print();
   return 0;
 }

@@ -346,20 +346,43 @@ void DescriptorTracker::matchPair(const Slot& older, const Slot& current) {
     ss.oriented = oriented;
     ss.F = F;
   }
+  const int merging = selectMerged(older, current, kept, F, pm.tight);
   // Best matches first: they win when two matches would put two features of a frame in a track.
-  std::iota(order_.begin(), order_.begin() + kept, 0);
-  std::stable_sort(order_.begin(), order_.begin() + kept, [&](int i, int j) {
+  std::iota(order_.begin(), order_.begin() + merging, 0);
+  std::stable_sort(order_.begin(), order_.begin() + merging, [&](int i, int j) {
     return matches_[static_cast<std::size_t>(i)].distance <
            matches_[static_cast<std::size_t>(j)].distance;
   });
   const int base_a = frame_offset_[static_cast<std::size_t>(older.frame)];
   const int base_b = frame_offset_[static_cast<std::size_t>(current.frame)];
-  for (int k = 0; k < kept; ++k) {
+  for (int k = 0; k < merging; ++k) {
     const DescriptorMatch& m =
         matches_[static_cast<std::size_t>(order_[static_cast<std::size_t>(k)])];
     if (unite(base_a + m.a, base_b + m.b)) ++pm.merged;
   }
   pairs_.push_back(pm);
+}
+
+int DescriptorTracker::selectMerged(const Slot& older, const Slot& current, int count,
+                                    const Eigen::Matrix3d& F, int& tight) {
+  const double t2 = options_.merge_max_sampson_px * options_.merge_max_sampson_px;
+  tight = 0;
+  for (int i = 0; i < count; ++i) {
+    const DescriptorMatch& m = matches_[static_cast<std::size_t>(i)];
+    const Keypoint& p = older.keypoints[static_cast<std::size_t>(m.a)];
+    const Keypoint& q = current.keypoints[static_cast<std::size_t>(m.b)];
+    const Eigen::Vector2d a = undistortedPixel(static_cast<double>(p.x), static_cast<double>(p.y));
+    const Eigen::Vector2d b = undistortedPixel(static_cast<double>(q.x), static_cast<double>(q.y));
+    const bool in = sampsonSquared(F, a, b) <= t2;
+    inlier_[static_cast<std::size_t>(i)] = in ? 1 : 0;
+    tight += in ? 1 : 0;
+  }
+  if (tight < options_.merge_min_tight) return count;  // a weak pair: every inlier
+  int kept = 0;
+  for (int i = 0; i < count; ++i)
+    if (inlier_[static_cast<std::size_t>(i)])
+      matches_[static_cast<std::size_t>(kept++)] = matches_[static_cast<std::size_t>(i)];
+  return kept;
 }
 
 DescriptorTracker::Status DescriptorTracker::addFrame(ImageView<const uint8_t> image,

@@ -42,8 +42,11 @@ struct GlobalMotionOptions {
   uint64_t seed = 0x5eed;    ///< the sampler's seed: the same input gives the same model
   /// Rolling shutter: when the similarity leaves more than row_term_below of the points out, a
   /// similarity with a row term (3-point RANSAC) is fitted too, and kept when it takes in at
-  /// least row_term_gain of the points more.
-  bool row_term = true;
+  /// least row_term_gain of the points more. Off by default: an affine map also fits parallax
+  /// (a turntable, forward motion), and kept on every frame it moved templeRing 12-30's
+  /// self-calibrated focal from 1522 to 1536 px; epitrack-solve turns it on with a readout
+  /// (--readout-ms, --readout auto), epitrack-track with --motion-rows.
+  bool row_term = false;
   double row_term_below = 0.9;
   double row_term_gain = 0.15;
   double max_row_term = 0.05;  ///< px per row: beyond, a sample is two objects, not the rows

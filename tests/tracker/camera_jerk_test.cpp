@@ -197,12 +197,13 @@ TEST_CASE("A rolling shutter's shake: the motion model's row term keeps the trac
   o.seed = 1;
   const RenderedClip clip = epitrack::test::addNoise(epitrack::test::renderClip(o), 1.0, 7);
 
-  FeatureTrackerOptions similarity;
-  similarity.motion.row_term = false;
+  const FeatureTrackerOptions similarity;  // the default: no row term
+  REQUIRE_FALSE(similarity.motion.row_term);
   const Losses before = countLosses(clip, similarity);
-  const FeatureTrackerOptions defaults;
-  const Losses after = countLosses(clip, defaults);
-  const auto a = epitrack::test::measureTracker(clip, defaults);
+  FeatureTrackerOptions rows;
+  rows.motion.row_term = true;
+  const Losses after = countLosses(clip, rows);
+  const auto a = epitrack::test::measureTracker(clip, rows);
   std::printf(
       "rolling-shutter shake: gate losses %d (worst frame %d) with a similarity, %d (worst %d) "
       "with the row term; median %.3f px, p95 %.3f px, beyond 3 px %.2f %%\n",

@@ -166,6 +166,9 @@ int main(int argc, char** argv) {
   o.readout_auto = readout_choice == "auto";
   if (o.readout_auto && o.readout_ms > 0.0)
     return cl.usageError("give either --readout-ms or --readout auto, not both");
+  // A rolling shutter declared or looked for: the tracker's motion model follows the rows of a
+  // jerk (GlobalMotionOptions::row_term, docs/tracker.md).
+  o.tracker.motion.row_term = o.readout_auto || o.readout_ms > 0.0;
   epitrack::tools::parseMatcher(matcher, o.matcher);
   o.solver.seed = static_cast<uint64_t>(seed);
   if (quiet) o.progress = epitrack::io::ProgressReporter::Mode::kQuiet;

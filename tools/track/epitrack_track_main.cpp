@@ -149,11 +149,11 @@ int parseCommandLine(int argc, char** argv, TrackCommand& cmd) {
           "no per-frame camera motion model: each track predicted from its own velocity alone "
           "(docs/tracker.md; the model is on by default)",
           &no_global_motion);
-  bool no_motion_rows = false;
-  cl.flag("no-motion-rows",
-          "the camera motion model without its rolling-shutter row term: a similarity only "
-          "(docs/tracker.md; the row term is on by default)",
-          &no_motion_rows);
+  bool motion_rows = false;
+  cl.flag("motion-rows",
+          "rolling shutter: the camera motion model follows the rows of a jerk (a row term "
+          "beside the similarity; docs/tracker.md; default off)",
+          &motion_rows);
   bool epipolar = false;
   cl.flag("epipolar",
           "the epipolar check: drop tracks that stay off the rigid two-view relation (F, or H "
@@ -179,7 +179,7 @@ int parseCommandLine(int argc, char** argv, TrackCommand& cmd) {
   if (whole_window) o.wholeWindow();
   o.kalman_gate = !no_kalman;
   o.global_motion = !no_global_motion;
-  o.motion.row_term = !no_motion_rows;
+  o.motion.row_term = motion_rows;
   o.epipolar_check = epipolar;
   o.affine = !translation_only;
   epitrack::tools::parseMatcher(matcher_text, cmd.matcher);

@@ -84,6 +84,8 @@ RotationAdjuster::RotationAdjuster(int max_cameras, int max_directions, int max_
   bv_.resize(nd);
   dstep_.resize(nd);
   W_.setZero(max_columns, 2);
+  WV_.setZero(max_columns, 2);
+  runs_.reserve(static_cast<std::size_t>(max_columns));
   touched_.reserve(static_cast<std::size_t>(max_columns));
   is_touched_.assign(static_cast<std::size_t>(max_columns), 0);
   rot_trial_.resize(nc);
@@ -195,6 +197,40 @@ void RotationAdjuster::linearise(std::span<const Eigen::Matrix3d> rotations,
   }
 }
 
+// One direction's Schur term, A -= W V^-1 W^T and b -= W V^-1 bv, over the columns it touches.
+// A track is seen by consecutive cameras, so its columns form a few contiguous runs (the
+// cameras, the focal): the term is a few dense block products instead of one 2-vector dot
+// product per pair of columns, which was half of a tripod solve's time.
+void RotationAdjuster::subtractDirection(const Eigen::Matrix2d& Vinv, const Eigen::Vector2d& bv) {
+  std::sort(touched_.begin(), touched_.end());
+  runs_.clear();
+  for (const int col : touched_) {
+    if (!runs_.empty() && runs_.back().first + runs_.back().second == col)
+      ++runs_.back().second;
+    else
+      runs_.emplace_back(col, 1);
+  }
+  for (const auto& [first, count] : runs_) {
+    WV_.middleRows(first, count).noalias() = W_.middleRows(first, count) * Vinv;
+    b_.segment(first, count).noalias() -= WV_.middleRows(first, count) * bv;
+  }
+  // Only the lower triangle: the Cholesky factorisation reads nothing else.
+  for (std::size_t i = 0; i < runs_.size(); ++i) {
+    const auto [row, rows] = runs_[i];
+    A_.block(row, row, rows, rows).triangularView<Eigen::Lower>() -=
+        WV_.middleRows(row, rows) * W_.middleRows(row, rows).transpose();
+    for (std::size_t j = 0; j < i; ++j) {
+      const auto [col, cols] = runs_[j];
+      A_.block(row, col, rows, cols).noalias() -=
+          WV_.middleRows(row, rows) * W_.middleRows(col, cols).transpose();
+    }
+  }
+  for (const auto& [first, count] : runs_) {
+    W_.middleRows(first, count).setZero();
+    std::fill_n(is_touched_.begin() + first, count, uint8_t{0});
+  }
+}
+
 // The damped step: the directions eliminated by the Schur complement (Triggs et al. §6.1), the
 // reduced system factored by Cholesky, the directions back-substituted.
 bool RotationAdjuster::solveStep(double lambda, int directions) {
@@ -220,15 +256,7 @@ bool RotationAdjuster::solveStep(double lambda, int directions) {
         W_.row(col) += L.weight * L.Jg.col(a).transpose() * L.Jd;
       }
     }
-    for (const int a : touched_) {
-      const Eigen::RowVector2d wa = W_.row(a) * Vinv;
-      b_(a) -= wa.dot(bv_[ju]);
-      for (const int b : touched_) A_(a, b) -= wa.dot(W_.row(b));
-    }
-    for (const int a : touched_) {
-      W_.row(a).setZero();
-      is_touched_[static_cast<std::size_t>(a)] = 0;
-    }
+    subtractDirection(Vinv, bv_[ju]);
   }
   Eigen::Ref<Eigen::MatrixXd> reduced = A_.topLeftCorner(n, n);
   Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(reduced);  // in place: no allocation

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -89,6 +90,7 @@ class RotationAdjuster {
                  std::span<const BaTrajectoryNeighbours> neighbours, const BaIntrinsics& k,
                  double huber);
   bool solveStep(double lambda, int directions);
+  void subtractDirection(const Eigen::Matrix2d& Vinv, const Eigen::Vector2d& bv);
 
   int max_cameras_, max_directions_, max_observations_;
   RollingShutter shutter_;
@@ -106,11 +108,13 @@ class RotationAdjuster {
   Eigen::VectorXd g_;                     // its right-hand side
   Eigen::MatrixXd A_;                     // the damped Schur complement
   Eigen::VectorXd b_, step_;
-  std::vector<Eigen::Matrix2d> V_;      // direction blocks (undamped)
-  std::vector<Eigen::Vector2d> bv_;     // direction right-hand sides
-  std::vector<Eigen::Vector2d> dstep_;  // direction steps
-  Eigen::MatrixXd W_;                   // one direction's coupling (columns_ x 2)
-  std::vector<int> touched_;            // reduced-system columns touched by one direction
+  std::vector<Eigen::Matrix2d> V_;         // direction blocks (undamped)
+  std::vector<Eigen::Vector2d> bv_;        // direction right-hand sides
+  std::vector<Eigen::Vector2d> dstep_;     // direction steps
+  Eigen::MatrixXd W_;                      // one direction's coupling (columns_ x 2)
+  Eigen::MatrixXd WV_;                     // W V^-1 of the touched rows
+  std::vector<int> touched_;               // reduced-system columns touched by one direction
+  std::vector<std::pair<int, int>> runs_;  // touched_ as contiguous (first, count) runs
   std::vector<uint8_t> is_touched_;
   std::vector<Eigen::Matrix3d> rot_trial_;
   std::vector<Eigen::Vector3d> dir_trial_;

@@ -163,7 +163,8 @@ TEST_CASE("DescriptorTracker: key frames of a rendered orbit, matches against th
   }
 }
 
-TEST_CASE("Key-frame solve of the rendered orbit from descriptor tracks", "[matching][keyframes]") {
+TEST_CASE("Key-frame solve of the rendered orbit from descriptor tracks",
+          "[matching][keyframes][slow]") {
   const KeyframeClip& clip = keyframeClip();
   DescriptorTrackerOptions o;
   o.focal_px = clip.options.focal;

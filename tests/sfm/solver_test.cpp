@@ -200,7 +200,7 @@ TEST_CASE("Exact orbit (optical axes meet): completes with a fallback focal, not
   CHECK(r.solved == 150);
 }
 
-TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][solver]") {
+TEST_CASE("Pan (pure rotation): tripod solve with the focal within 2 %", "[sfm][solver][slow]") {
   Clip c;
   makeClip(c, synth::SceneKind::kPan, 100, 0.0, 0.3);
   SolverOptions o;
@@ -287,7 +287,7 @@ void makeCutClip(Clip& c, int frames, int cut, bool new_ids) {
 }  // namespace
 
 TEST_CASE("A solve of half the frames is partial and says why the rest is unsolved",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   for (const bool new_ids : {false, true}) {
     Clip c;
     makeCutClip(c, 120, 60, new_ids);
@@ -322,7 +322,7 @@ TEST_CASE("A solve of half the frames is partial and says why the rest is unsolv
   }
 }
 
-TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver]") {
+TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver][slow]") {
   // 114 of 120 frames have tracks: 95 %.
   Clip c;
   makeCutClip(c, 120, 114, false);
@@ -338,7 +338,8 @@ TEST_CASE("A solve of at least 90 % of the frames stays ok", "[sfm][solver]") {
   CHECK(ranges[1].cause == UnsolvedCause::kTracksLost);
 }
 
-TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[sfm][solver]") {
+TEST_CASE("Key-frame views that nothing links to are named as unregistered",
+          "[sfm][solver][slow]") {
   // Every 4th frame of an orbit as a key-frame set; the last third under new track ids.
   Clip full;
   makeClip(full, synth::SceneKind::kOrbit, 120, 0.5, 0.3);
@@ -366,7 +367,7 @@ TEST_CASE("Key-frame views that nothing links to are named as unregistered", "[s
 }
 
 TEST_CASE("Tripod solve: a first frame with fewer than 8 tracks is not counted as solved",
-          "[sfm][solver]") {
+          "[sfm][solver][slow]") {
   // The pan clip with frame 0 cut to 5 tracks: the reference becomes frame 1.
   Clip full;
   makeClip(full, synth::SceneKind::kPan, 100, 0.0, 0.3);
@@ -395,7 +396,7 @@ TEST_CASE("Tripod solve: a first frame with fewer than 8 tracks is not counted a
 }
 
 TEST_CASE("A fast pan is solved as a tripod only when a rotation explains its tracks",
-          "[sfm][solver][tripod]") {
+          "[sfm][solver][tripod][slow]") {
   // The same back-and-forth pan (up to 3.5 deg/frame) with the centre walking 1.2 cm/frame and
   // on a tripod: the calibration pairs (two frames apart) fit rotations in both; only the widest
   // windows tell them apart (Solver::checkRotationModel). Track noise 0.05 px, the tracker's on
@@ -505,7 +506,7 @@ TrackTable middleRowTracks(const Clip& c) {
 }  // namespace
 
 TEST_CASE("A rolling-shutter fast pan on a tripod is a tripod solve once the readout is given",
-          "[sfm][solver][tripod][rolling-shutter]") {
+          "[sfm][solver][tripod][rolling-shutter][slow]") {
   // 30 ms readout at 30 fps (0.9 frame), the fast pan (up to 3.5 deg per frame) of the test
   // above: the rows' shear reads as parallax to the homographies unless the tracks are moved to
   // their middle-row times (shiftTracksToReferenceRow); the tripod adjustment then models each
@@ -560,7 +561,7 @@ TEST_CASE("A rolling-shutter fast pan on a tripod is a tripod solve once the rea
 }
 
 TEST_CASE("The tripod adjustment estimates a rolling shutter's readout",
-          "[sfm][solver][tripod][rolling-shutter]") {
+          "[sfm][solver][tripod][rolling-shutter][slow]") {
   // --readout auto on a pan the global-shutter solve already sees as a tripod: the readout whose
   // row model fits the tracks as exposed best, with its standard error; kept when significant.
   constexpr double kTrackNoisePx = 0.1;

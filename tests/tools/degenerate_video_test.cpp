@@ -430,7 +430,7 @@ TEST_CASE("A rolling-shutter fast pan on a tripod: the rows modelled in the trip
 }
 
 TEST_CASE("A pan solved with --readout auto estimates the readout in the tripod adjustment",
-          "[solve][degenerate][tripod][rolling-shutter]") {
+          "[solve][degenerate][tripod][rolling-shutter][slow]") {
   // Issue 27: a phone panning on a tripod, readout unknown (30 ms at 30 fps). The global-shutter
   // solve finds the tripod, its adjustment estimates the readout and keeps the row model; the same
   // pan with a global shutter estimates about zero and keeps the global-shutter solve.

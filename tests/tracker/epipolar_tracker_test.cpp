@@ -39,7 +39,7 @@ struct Slide {
 }  // namespace
 
 TEST_CASE("FeatureTracker drops sliding tracks with TrackLoss::kEpipolar and counts them",
-          "[tracker][epipolar]") {
+          "[tracker][epipolar][slow]") {
   const auto& clip = epitrack::test::orbitPrefix(60);
   FeatureTrackerOptions options;
   options.epipolar_check = true;

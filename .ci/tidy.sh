@@ -30,7 +30,7 @@ t1=$SECONDS
 # Compile commands from clang (clang-tidy is clang: GCC's own warning flags would be unknown to it);
 # the tests are left out of the configure (they are not checked).
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release \
-  -DEPITRACK_BUILD_TESTS=OFF -DEPITRACK_BUILD_BENCH=ON -DEPITRACK_CCACHE=OFF \
+  -DEPITRACK_BUILD_TESTS=OFF -DEPITRACK_BUILD_BENCH=ON -DEPITRACK_CCACHE=OFF -DEPITRACK_PCH=OFF \
   -DCMAKE_EXPORT_COMPILE_COMMANDS=ON >/dev/null
 units=$(python3 -c '
 import json, sys

@@ -61,3 +61,17 @@ endif()
 function(epitrack_target_defaults target)
   target_link_libraries(${target} PRIVATE $<BUILD_INTERFACE:epitrack_warnings>)
 endfunction()
+
+# Build time (docs/testing.md, "Build time"): parsing Eigen costs about 1.2 s per translation
+# unit, more than some of the units' own code. algo/ and the commands whose units all include it
+# (bench, solve, synth) precompile <Eigen/Dense> once per target (GCC checks the header is used:
+# -Winvalid-pch is an error under -Werror). Not tools/export and tools/render: with the header
+# GCC 12 reports its known false -Warray-bounds on inlined std::string copies there.
+# The results do not change (byte-identical solves and tracks, 2026-12-06). EPITRACK_PCH=OFF
+# compiles without (clang-tidy's configure-only build).
+option(EPITRACK_PCH "Precompile Eigen once per library" ON)
+function(epitrack_eigen_pch target)
+  if(EPITRACK_PCH)
+    target_precompile_headers(${target} PRIVATE <Eigen/Dense>)
+  endif()
+endfunction()

@@ -87,12 +87,6 @@ bool recoverRelativePose(const Eigen::Matrix3d& E, std::span<const Eigen::Vector
 
 namespace {
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 // Signed Sampson distance of x2^T E x1 = 0 in normalized units.
 double signedSampson(const Eigen::Matrix3d& E, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector3d p1 = a.homogeneous(), p2 = b.homogeneous();
@@ -128,7 +122,7 @@ bool refineRelativePose(std::span<const Eigen::Vector2d> n1, std::span<const Eig
   // inliers fit to a fraction of a pixel).
   double h = huber_px / focal_px;
   auto cost = [&](const PoseParams& p) {
-    const Eigen::Matrix3d E = skew(p.t) * p.R;
+    const Eigen::Matrix3d E = skewSymmetric(p.t) * p.R;
     double c = 0.0;
     for (std::size_t i = 0; i < n1.size(); ++i) {
       if (!mask.empty() && !mask[i]) continue;
@@ -141,7 +135,7 @@ bool refineRelativePose(std::span<const Eigen::Vector2d> n1, std::span<const Eig
   constexpr double kStep = 1e-7;
   for (int it = 0; it < max_iterations; ++it) {
     {
-      const Eigen::Matrix3d E = skew(cur.t) * cur.R;
+      const Eigen::Matrix3d E = skewSymmetric(cur.t) * cur.R;
       double sorted[1024];
       std::size_t m = 0;
       for (std::size_t i = 0; i < n1.size() && m < 1024; ++i)
@@ -153,13 +147,13 @@ bool refineRelativePose(std::span<const Eigen::Vector2d> n1, std::span<const Eig
     double current = cost(cur);
     Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
     Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
-    const Eigen::Matrix3d E0 = skew(cur.t) * cur.R;
+    const Eigen::Matrix3d E0 = skewSymmetric(cur.t) * cur.R;
     Eigen::Matrix3d Ek[5];
     for (int k = 0; k < 5; ++k) {
       Eigen::Matrix<double, 5, 1> d = Eigen::Matrix<double, 5, 1>::Zero();
       d(k) = kStep;
       const PoseParams p = cur.moved(d);
-      Ek[k] = skew(p.t) * p.R;
+      Ek[k] = skewSymmetric(p.t) * p.R;
     }
     for (std::size_t i = 0; i < n1.size(); ++i) {
       if (!mask.empty() && !mask[i]) continue;

@@ -12,6 +12,7 @@
 #include <Eigen/SVD>
 
 #include "algo/core/assert.hpp"
+#include "algo/geometry/dlt_rows.hpp"
 #include "algo/geometry/fundamental.hpp"
 
 namespace epitrack {
@@ -96,12 +97,6 @@ PolyMatrix multiply(const PolyMatrix& A, int a_degree, const PolyMatrix& B, int 
   return C;
 }
 
-inline Eigen::Matrix<double, 1, 9> epipolarRow(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  Eigen::Matrix<double, 1, 9> r;
-  r << b.x() * a.x(), b.x() * a.y(), b.x(), b.y() * a.x(), b.y() * a.y(), b.y(), a.x(), a.y(), 1.0;
-  return r;
-}
-
 }  // namespace
 
 double essentialSampsonSquared(const Eigen::Matrix3d& E, const Eigen::Vector2d& n1,
@@ -120,7 +115,7 @@ int essentialFivePoint(const Eigen::Vector2d n1[5], const Eigen::Vector2d n2[5],
   // Null space of the five constraints: the last four columns of Q in the QR factorisation of
   // their transpose (9 x 5).
   Eigen::Matrix<double, 9, 5> At;
-  for (int i = 0; i < 5; ++i) At.col(i) = epipolarRow(n1[i], n2[i]).transpose();
+  for (int i = 0; i < 5; ++i) At.col(i) = epipolarCoefficients(n1[i], n2[i]);
   const Eigen::HouseholderQR<Eigen::Matrix<double, 9, 5>> qr(At);
   const Eigen::Matrix<double, 9, 9> V = qr.householderQ();
   if (!V.allFinite()) return 0;

@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
+#include "algo/geometry/dlt_rows.hpp"
 #include "algo/geometry/point_normalization.hpp"
 
 namespace epitrack {
@@ -31,19 +32,6 @@ Eigen::Matrix3d enforceRank2(const Eigen::Matrix3d& F) {
 }
 
 namespace {
-
-inline Eigen::Matrix<double, 9, 1> epipolarRow(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  // x2^T F x1 = 0 with F row-major in the 9-vector.
-  Eigen::Matrix<double, 9, 1> r;
-  r << b.x() * a.x(), b.x() * a.y(), b.x(), b.y() * a.x(), b.y() * a.y(), b.y(), a.x(), a.y(), 1.0;
-  return r;
-}
-
-inline Eigen::Matrix3d fromRowMajor(const Eigen::Matrix<double, 9, 1>& f) {
-  Eigen::Matrix3d F;
-  F << f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7), f(8);
-  return F;
-}
 
 bool finite2(const Eigen::Vector2d& v) { return std::isfinite(v.x()) && std::isfinite(v.y()); }
 
@@ -80,11 +68,11 @@ struct FundamentalKernel {
     Eigen::Matrix<double, 8, 9> A;
     for (int i = 0; i < 8; ++i) {
       const auto k = static_cast<std::size_t>(s[static_cast<std::size_t>(i)]);
-      A.row(i) = epipolarRow(n1[k], n2[k]).transpose();
+      A.row(i) = epipolarCoefficients(n1[k], n2[k]).transpose();
     }
     Eigen::Matrix<double, 9, 1> f;
     if (!nullVector8x9(A, f)) return 0;
-    const Eigen::Matrix3d Fn = enforceRank2(fromRowMajor(f));
+    const Eigen::Matrix3d Fn = enforceRank2(matrix3FromRowMajor(f));
     models[0] = T2.transpose() * Fn * T1;
     return 1;
   }
@@ -110,7 +98,7 @@ bool fitFundamentalEightPoint(std::span<const Eigen::Vector2d> x1,
     const Eigen::Vector2d b = (T2 * x2[k].homogeneous()).hnormalized();
     const double w = weights.empty() ? 1.0 : weights[i];
     if (!(w > 0.0)) continue;
-    const Eigen::Matrix<double, 9, 1> r = w * epipolarRow(a, b);
+    const Eigen::Matrix<double, 9, 1> r = w * epipolarCoefficients(a, b);
     AtA.selfadjointView<Eigen::Upper>().rankUpdate(r);
   }
   Eigen::Matrix<double, 9, 9> full = AtA.selfadjointView<Eigen::Upper>();
@@ -119,7 +107,7 @@ bool fitFundamentalEightPoint(std::span<const Eigen::Vector2d> x1,
   const Eigen::Vector<double, 9>& ev = es.eigenvalues();
   // A second (near-)zero eigenvalue means the constraints do not fix F (degenerate configuration).
   if (!(ev(1) > 1e-12 * std::max(1e-300, ev(8)))) return false;
-  const Eigen::Matrix3d Fn = enforceRank2(fromRowMajor(es.eigenvectors().col(0)));
+  const Eigen::Matrix3d Fn = enforceRank2(matrix3FromRowMajor(es.eigenvectors().col(0)));
   F = T2.transpose() * Fn * T1;
   const double norm = F.norm();
   if (!(norm > 0.0) || !std::isfinite(norm)) return false;

@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "algo/geometry/dlt_rows.hpp"
 #include "algo/geometry/point_normalization.hpp"
 
 namespace epitrack {
@@ -23,12 +24,6 @@ inline void dltRows(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                     Eigen::Matrix<double, 9, 1>& r0, Eigen::Matrix<double, 9, 1>& r1) {
   r0 << 0, 0, 0, -a.x(), -a.y(), -1, b.y() * a.x(), b.y() * a.y(), b.y();
   r1 << a.x(), a.y(), 1, 0, 0, 0, -b.x() * a.x(), -b.x() * a.y(), -b.x();
-}
-
-inline Eigen::Matrix3d fromRowMajor(const Eigen::Matrix<double, 9, 1>& h) {
-  Eigen::Matrix3d H;
-  H << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
-  return H;
 }
 
 struct HomographyKernel {
@@ -102,7 +97,7 @@ bool fitHomographyDlt(std::span<const Eigen::Vector2d> x1, std::span<const Eigen
     if (!(es.eigenvalues()(1) > 1e-12 * std::max(1e-300, es.eigenvalues()(8)))) return false;
     h = es.eigenvectors().col(0);
   }
-  H = T2.inverse() * fromRowMajor(h) * T1;
+  H = T2.inverse() * matrix3FromRowMajor(h) * T1;
   if (!H.allFinite() || std::abs(H(2, 2)) < 1e-12 * H.norm()) {
     if (!H.allFinite() || H.norm() == 0.0) return false;
     H /= H.norm();

@@ -29,6 +29,19 @@ inline Eigen::Matrix3d expSo3(const Eigen::Vector3d& w) {
          ((1.0 - std::cos(theta)) / theta2) * W * W;
 }
 
+/// The cross-product matrix [v]x: [v]x u = v x u.
+inline Eigen::Matrix3d skewSymmetric(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return S;
+}
+
+/// Rotation vector of R (the inverse of expSo3 for angles below pi).
+inline Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
 /// Angle in radians of the rotation R (0..pi).
 inline double rotationAngle(const Eigen::Matrix3d& R) {
   const double c = std::clamp(0.5 * (R.trace() - 1.0), -1.0, 1.0);

@@ -74,12 +74,6 @@ void applyParams(const PoseCw& pose0, const ParamVector& p, PoseCw& pose,
   motion.linear = p.segment<3>(9);
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
-
 struct Problem {
   const CameraIntrinsics& k;
   const RollingShutter& shutter;
@@ -162,9 +156,9 @@ struct Problem {
       const Eigen::Vector3d y = a + pose.t_cw;
       const Eigen::Vector3d x_c = E * y;
       Eigen::Matrix<double, 3, kParams> dx;
-      dx.block<3, 3>(0, 0) = -E * skew(a);
+      dx.block<3, 3>(0, 0) = -E * skewSymmetric(a);
       dx.block<3, 3>(0, 3) = E;
-      dx.block<3, 3>(0, 6) = tau * E * skew(y);
+      dx.block<3, 3>(0, 6) = tau * E * skewSymmetric(y);
       dx.block<3, 3>(0, 9) = -tau * E * pose.R_cw;
       const Eigen::Matrix<double, 2, kParams> J = pixelJacobian(x_c) * dx;
       const double w = huberWeight(r.norm());

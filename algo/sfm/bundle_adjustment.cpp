@@ -5,29 +5,20 @@
 
 #include <Eigen/Geometry>
 
+#include "algo/geometry/pose.hpp"
+#include "algo/math/huber.hpp"
+
 namespace epitrack {
 namespace {
-
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d S;
-  S << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return S;
-}
 
 // exp([w]x) by Rodrigues' formula, with the series near zero.
 Eigen::Matrix3d rodrigues(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();
-  const Eigen::Matrix3d W = skew(w);
+  const Eigen::Matrix3d W = skewSymmetric(w);
   if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
   const double theta = std::sqrt(theta2);
   return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
          ((1.0 - std::cos(theta)) / theta2) * (W * W);
-}
-
-// Huber weight and cost of a residual of norm e (threshold h; h <= 0: plain least squares).
-double huberWeight(double e, double h) { return (h <= 0.0 || e <= h) ? 1.0 : h / e; }
-double huberCost(double e, double h) {
-  return (h <= 0.0 || e <= h) ? 0.5 * e * e : h * (e - 0.5 * h);
 }
 
 constexpr double kMinDepth = 1e-8;
@@ -35,7 +26,7 @@ constexpr double kMinDepth = 1e-8;
 // The right Jacobian of SO(3): Exp(phi + d) = Exp(phi) Exp(Jr(phi) d) to first order in d.
 Eigen::Matrix3d rightJacobianSo3(const Eigen::Vector3d& phi) {
   const double theta2 = phi.squaredNorm();
-  const Eigen::Matrix3d P = skew(phi);
+  const Eigen::Matrix3d P = skewSymmetric(phi);
   if (theta2 < 1e-12) return Eigen::Matrix3d::Identity() - 0.5 * P + (1.0 / 6.0) * (P * P);
   const double theta = std::sqrt(theta2);
   return Eigen::Matrix3d::Identity() - ((1.0 - std::cos(theta)) / theta2) * P +
@@ -142,7 +133,7 @@ bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics&
   J_p << iz, 0.0, -xn * iz, 0.0, iz, -yn * iz;
   const Eigen::Matrix<double, 2, 3> J_uv_p = J_n * J_p;
   // p = exp(dtheta) R X + t + dt  =>  dp/ddtheta = -[R X]x, dp/ddt = I, dp/dX = R.
-  J_cam.leftCols<3>() = -J_uv_p * skew(RX);
+  J_cam.leftCols<3>() = -J_uv_p * skewSymmetric(RX);
   J_cam.rightCols<3>() = J_uv_p;
   J_point = J_uv_p * c.R_cw;
   J_intr(0, 0) = d * xn;
@@ -211,9 +202,9 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
   const Eigen::Vector3d y = a + c.t_cw;
   const Eigen::Vector3d x_c = E * y;
   const Eigen::Matrix<double, 2, 3> GE = G * E;
-  J_cam.leftCols<3>() = -GE * skew(a);
+  J_cam.leftCols<3>() = -GE * skewSymmetric(a);
   J_cam.rightCols<3>() = GE;
-  J_motion.leftCols<3>() = tau * GE * skew(y) * rightJacobianSo3(-tau * m.angular);
+  J_motion.leftCols<3>() = tau * GE * skewSymmetric(y) * rightJacobianSo3(-tau * m.angular);
   J_motion.rightCols<3>() = -tau * GE * c.R_cw;
   const Eigen::Vector2d u_tau = G * (-m.angular.cross(x_c) - E * (c.R_cw * m.linear));
   // The row moves with the parameters: uv = pi(q, tau(uv_y)) gives
@@ -236,16 +227,11 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
 
 namespace {
 
-Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
 // The inverse of the right Jacobian of SO(3): Log(Exp(phi) Exp(d)) = phi + Jr^-1(phi) d to first
 // order; the left one is Jr^-1(-phi).
 Eigen::Matrix3d rightJacobianInverseSo3(const Eigen::Vector3d& phi) {
   const double theta2 = phi.squaredNorm();
-  const Eigen::Matrix3d P = skew(phi);
+  const Eigen::Matrix3d P = skewSymmetric(phi);
   if (theta2 < 1e-10) return Eigen::Matrix3d::Identity() + 0.5 * P + (1.0 / 12.0) * (P * P);
   const double theta = std::sqrt(theta2);
   const double c = 1.0 / theta2 - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
@@ -258,7 +244,7 @@ Eigen::Vector3d centreOf(const BaCamera& c) { return -c.R_cw.transpose() * c.t_c
 // -R^T [t]x dtheta - R^T dt.
 Eigen::Matrix<double, 3, 6> centreJacobian(const BaCamera& c) {
   Eigen::Matrix<double, 3, 6> J;
-  J.leftCols<3>() = -c.R_cw.transpose() * skew(c.t_cw);
+  J.leftCols<3>() = -c.R_cw.transpose() * skewSymmetric(c.t_cw);
   J.rightCols<3>() = -c.R_cw.transpose();
   return J;
 }
@@ -1089,7 +1075,7 @@ bool BundleAdjuster::centreStandardDeviations(
     if (slot < 0 || centre_sd[c] < 0.0) continue;
     const BaCamera& cam = cameras[c];
     Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>() = -cam.R_cw.transpose() * skew(cam.t_cw);
+    J.leftCols<3>() = -cam.R_cw.transpose() * skewSymmetric(cam.t_cw);
     J.rightCols<3>() = -cam.R_cw.transpose();
     const int m = L.n - slot;
     double variance = 0.0;

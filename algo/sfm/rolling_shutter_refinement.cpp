@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 
+#include "algo/geometry/pose.hpp"
 #include "algo/geometry/triangulation.hpp"
 #include "algo/geometry/undistort.hpp"
 #include "algo/sfm/ba_camera_pose.hpp"
@@ -275,12 +276,6 @@ RollingShutterRefinementResult refineRollingShutter(
 }
 
 namespace {
-
-// Rotation vector of R (the inverse of expSo3), for the small frame-to-frame rotations.
-Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
 
 // The image motion (normalized coordinates per frame interval) a readout motion causes at the
 // point x_c of the camera: x_c' = -w x x_c - R_cw v, then the projection's derivative.

@@ -7,16 +7,11 @@
 #include <Eigen/Cholesky>
 
 #include "algo/geometry/pose.hpp"
+#include "algo/math/huber.hpp"
 
 namespace epitrack {
 
 namespace {
-
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
 
 // An orthonormal basis of the plane orthogonal to the unit vector d: the direction's two degrees
 // of freedom. The same d always gives the same basis (linearisation and update agree).
@@ -51,10 +46,6 @@ bool projectDirection(const BaIntrinsics& k, const Eigen::Vector3d& x_c, Eigen::
   }
   if (J_f != nullptr) *J_f = Eigen::Vector2d(s * n.x(), k.aspect * s * n.y());
   return true;
-}
-
-double huberCost(double e, double h) {
-  return h <= 0.0 || e <= h ? 0.5 * e * e : h * (e - 0.5 * h);
 }
 
 }  // namespace
@@ -156,7 +147,7 @@ void RotationAdjuster::linearise(std::span<const Eigen::Matrix3d> rotations,
     L.Jd = J_x * E * rotations[c] * tangentBasis(d);
     // x_c = Exp(-w tau) R_c d: left update of R_c gives -E [y]x; w's update gives tau E [y]x,
     // and w depends on the previous camera, this one and the next (the trajectory's motion).
-    const Eigen::Matrix<double, 2, 3> J_y = J_x * E * skew(y);
+    const Eigen::Matrix<double, 2, 3> J_y = J_x * E * skewSymmetric(y);
     const int cams[3] = {rs ? neighbours[c].previous : -1, o.camera, rs ? neighbours[c].next : -1};
     for (int s = 0; s < 3; ++s) {
       if (cams[s] < 0) continue;

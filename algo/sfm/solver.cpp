@@ -364,32 +364,17 @@ bool Solver::tryPair(int a, int b, double& score, PoseCw& pose_b, std::vector<in
   return true;
 }
 
+// The best two-view start found so far, and the scratch of the pair being tried.
+struct Solver::InitialPair {
+  double score = 0.0;
+  int a = -1, b = -1;
+  PoseCw pose;
+  std::vector<int> tracks, scratch_tracks;
+  std::vector<Eigen::Vector3d> X, scratch_X;
+};
+
 bool Solver::initialize() {
-  const int n = tracks_.frameCount();
-  // Homographies everywhere: a rotating camera if the homographies are rotations for one focal,
-  // otherwise a plane or a distant scene. The rotation focal then seeds the search for an
-  // initial pair (a distant scene with a short baseline still has parallax over longer gaps);
-  // only when no pair has parallax is the clip solved as a tripod.
-  bool rotation_coherent = false;
-  double rotation_focal = 0.0;
-  if (motion_ == MotionClass::kRotationOrPlane && !homographies_.empty()) {
-    std::vector<double> fs;
-    for (const auto& H : homographies_) {
-      const auto e = estimateFocalFromRotation(H, width_, height_);
-      if (e.observable) fs.push_back(e.focal_px);
-    }
-    rotation_focal = median(fs);
-    int coherent = 0;
-    for (const double v : fs) coherent += std::abs(v / rotation_focal - 1.0) < 0.05 ? 1 : 0;
-    const bool focal_fits =
-        options_.focal_px <= 0.0 || std::abs(rotation_focal / options_.focal_px - 1.0) < 0.1;
-    rotation_coherent = coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits;
-    if (rotation_coherent && options_.focal_px <= 0.0 && !focal_observable_) {
-      f_ = rotation_focal;
-      focal_source_ = FocalSource::kSelfCalibrated;
-      focal_observable_ = true;
-    }
-  }
+  const bool rotation_coherent = rotationsCoherent();
   // Homographies that are not rotations: a single plane (or a scene so distant it acts as one).
   // Any focal then explains the views equally well (paper §5.2 needs F), so a solve with a guessed
   // focal would be silently distorted: say so instead.
@@ -402,36 +387,78 @@ bool Solver::initialize() {
     return false;
   }
   if (sweep_pending_ && !focal_observable_) sweepFocal();
+  InitialPair best;
+  searchInitialPairs(best);
+  // Nothing with parallax, but rotations everywhere: a tripod, or a pan too fast for the short
+  // pairs to show the parallax (startFromRotation decides).
+  if (best.score <= 0.0 && rotation_coherent && !startFromRotation(best)) return false;
+  if (best.score <= 0.0) {
+    status_ = motion_ == MotionClass::kRotationOrPlane ? Status::kPlanarScene : Status::kInitFailed;
+    message_ = status_ == Status::kPlanarScene
+                   ? "the frames are related by homographies (a single plane without a given "
+                     "focal, or no translation): no 3D reconstruction"
+                   : "no pair of frames gave a valid two-view reconstruction";
+    return false;
+  }
+  seedMap(best);
+  return true;
+}
+
+bool Solver::rotationsCoherent() {
+  // Homographies everywhere: a rotating camera if the homographies are rotations for one focal,
+  // otherwise a plane or a distant scene. The rotation focal then seeds the search for an
+  // initial pair (a distant scene with a short baseline still has parallax over longer gaps);
+  // only when no pair has parallax is the clip solved as a tripod.
+  if (motion_ != MotionClass::kRotationOrPlane || homographies_.empty()) return false;
+  std::vector<double> fs;
+  for (const auto& H : homographies_) {
+    const auto e = estimateFocalFromRotation(H, width_, height_);
+    if (e.observable) fs.push_back(e.focal_px);
+  }
+  const double rotation_focal = median(fs);
+  int coherent = 0;
+  for (const double v : fs) coherent += std::abs(v / rotation_focal - 1.0) < 0.05 ? 1 : 0;
+  const bool focal_fits =
+      options_.focal_px <= 0.0 || std::abs(rotation_focal / options_.focal_px - 1.0) < 0.1;
+  const bool rotation_coherent =
+      coherent * 2 > static_cast<int>(homographies_.size()) && focal_fits;
+  if (rotation_coherent && options_.focal_px <= 0.0 && !focal_observable_) {
+    f_ = rotation_focal;
+    focal_source_ = FocalSource::kSelfCalibrated;
+    focal_observable_ = true;
+  }
+  return rotation_coherent;
+}
+
+void Solver::considerPair(int a, int b, InitialPair& best) const {
+  double score = 0.0;
+  PoseCw pose;
+  if (tryPair(a, b, score, pose, best.scratch_tracks, best.scratch_X) && score > best.score) {
+    best.score = score;
+    best.pose = pose;
+    best.tracks = best.scratch_tracks;
+    best.X = best.scratch_X;
+    best.a = a;
+    best.b = b;
+  }
+}
+
+void Solver::searchInitialPairs(InitialPair& best) const {
   // Candidate first frames spread over the first fifth of the clip, candidate partners at several
   // gaps measured by parallax (median displacement 10-40 % of the width).
-  double best_score = 0.0;
-  PoseCw best_pose;
-  std::vector<int> best_tracks, tr;
-  std::vector<Eigen::Vector3d> best_X, X;
+  const int n = tracks_.frameCount();
   std::vector<Eigen::Vector2d> x1, x2;
   const int a_span = options_.keyframe_collection ? -1 : std::max(1, n / 5);
   const int a_step = std::max(1, a_span / 6);
-  // A candidate pair: kept when it scores above the best so far.
-  const auto tryCandidate = [&](int a, int b) {
-    double score = 0.0;
-    PoseCw pose;
-    if (tryPair(a, b, score, pose, tr, X) && score > best_score) {
-      best_score = score;
-      best_pose = pose;
-      best_tracks = tr;
-      best_X = X;
-      init_a_ = a;
-      init_b_ = b;
-    }
-  };
-  if (options_.keyframe_collection) initialCandidatesAll(tryCandidate);
+  if (options_.keyframe_collection)
+    initialCandidatesAll([&](int a, int b) { considerPair(a, b, best); });
   for (int a = 0; a < n && a <= a_span; a += a_step) {
     const double targets[] = {0.04, 0.08, 0.14, 0.24};
     int t = 0, last_tried = -1, widest = -1;
     double widest_d = 0.0;
     const auto consider = [&](int b) {
       last_tried = b;
-      tryCandidate(a, b);
+      considerPair(a, b, best);
     };
     for (int b = a + 1; b < n && t < 4; ++b) {
       const int c = commonTracks(a, b, &x1, &x2);
@@ -448,62 +475,60 @@ bool Solver::initialize() {
     // Short or forward motions may not reach every target: the widest baseline is a candidate.
     if (t < 4 && widest > 0 && widest != last_tried && widest_d >= 0.02 * width_) consider(widest);
   }
+}
+
+bool Solver::startFromRotation(InitialPair& best) {
   // Short pairs that all fit rotations do not make a tripod: a fast pan crosses the image in a
   // few frames, too soon for a walking camera's parallax to show. The rotation is accepted only
   // when it explains the tracks to their noise over the widest windows (checkRotationModel);
   // otherwise those windows are the initial pair's candidates. (Not the other way round: under a
   // pure rotation F is degenerate, and a wrong relative pose from it can triangulate 30 points
   // with a degree of "parallax" between long-lived tracks.)
-  if (best_score <= 0.0 && rotation_coherent) {
-    const RotationCheck rotation = checkRotationModel();
-    rotation_refused_ = !rotation.holds;
-    if (rotation.holds) {
-      if (!tripodSolve()) {  // a failed tripod solve is a failed start, never "ok"
-        status_ = Status::kInitFailed;
-        message_ =
-            "the frames are related by rotations, but the tripod solve found no focal or no "
-            "frame with 8 tracks";
-      }
-      return false;
-    }
-    const int wide_step = std::max(1, n / 30);
-    for (int a = 0; a + 1 < n; a += wide_step) {
-      const int b = farthestPartner(a, kRotationWindowTracks);
-      if (b < a + 2) continue;
-      for (const int partner : {b, (a + b + 1) / 2}) tryCandidate(a, partner);
-    }
-    if (best_score <= 0.0) {
-      char text[320];
-      std::snprintf(text, sizeof(text),
-                    "the short frame pairs fit rotations, but over the widest windows the tracks "
-                    "do not (homography residual %.3f px against noise %.3f px, %d of %d windows "
-                    "beyond %.1fx): the camera moves, and no pair of frames has the parallax for "
-                    "a 3D start",
-                    rotation.residual_px, rotation.noise_px, rotation.parallax_windows,
-                    rotation.windows, kRotationResidualRatio);
+  const RotationCheck rotation = checkRotationModel();
+  rotation_refused_ = !rotation.holds;
+  if (rotation.holds) {
+    if (!tripodSolve()) {  // a failed tripod solve is a failed start, never "ok"
       status_ = Status::kInitFailed;
-      message_ = text;
-      return false;
+      message_ =
+          "the frames are related by rotations, but the tripod solve found no focal or no "
+          "frame with 8 tracks";
     }
-  }
-  if (best_score <= 0.0) {
-    status_ = motion_ == MotionClass::kRotationOrPlane ? Status::kPlanarScene : Status::kInitFailed;
-    message_ = status_ == Status::kPlanarScene
-                   ? "the frames are related by homographies (a single plane without a given "
-                     "focal, or no translation): no 3D reconstruction"
-                   : "no pair of frames gave a valid two-view reconstruction";
     return false;
   }
+  const int n = tracks_.frameCount();
+  const int wide_step = std::max(1, n / 30);
+  for (int a = 0; a + 1 < n; a += wide_step) {
+    const int b = farthestPartner(a, kRotationWindowTracks);
+    if (b < a + 2) continue;
+    for (const int partner : {b, (a + b + 1) / 2}) considerPair(a, partner, best);
+  }
+  if (best.score > 0.0) return true;
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "the short frame pairs fit rotations, but over the widest windows the tracks "
+                "do not (homography residual %.3f px against noise %.3f px, %d of %d windows "
+                "beyond %.1fx): the camera moves, and no pair of frames has the parallax for "
+                "a 3D start",
+                rotation.residual_px, rotation.noise_px, rotation.parallax_windows,
+                rotation.windows, kRotationResidualRatio);
+  status_ = Status::kInitFailed;
+  message_ = text;
+  return false;
+}
+
+void Solver::seedMap(const InitialPair& best) {
   motion_ = MotionClass::kGeneral;
+  init_a_ = best.a;
+  init_b_ = best.b;
   auto& fa = frames_[static_cast<std::size_t>(init_a_)];
   auto& fb = frames_[static_cast<std::size_t>(init_b_)];
   fa.solved = fb.solved = true;
   fa.pose = PoseCw{};
-  fb.pose = best_pose;
-  for (std::size_t i = 0; i < best_tracks.size(); ++i) {
+  fb.pose = best.pose;
+  for (std::size_t i = 0; i < best.tracks.size(); ++i) {
     MapPoint p;
-    p.X = best_X[i];
-    p.track = best_tracks[i];
+    p.X = best.X[i];
+    p.track = best.tracks[i];
     p.valid = true;
     point_of_track_[static_cast<std::size_t>(p.track)] = static_cast<int>(points_.size());
     points_.push_back(p);
@@ -511,7 +536,6 @@ bool Solver::initialize() {
   addKeyframe(init_a_);
   addKeyframe(init_b_);
   adjust(true);
-  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

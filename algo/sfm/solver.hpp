@@ -332,6 +332,17 @@ class Solver {
   bool registerBestViews();
   bool registerByRelativePose(int f, int reference);
   void initialCandidatesAll(const std::function<void(int, int)>& consider) const;
+  // initialize()'s stages: the rotation test, the search for a two-view start, the tripod or
+  // wide-window fallback, and the map seeded from the pair found.
+  struct InitialPair;
+  /// Under homographies everywhere: whether they are rotations of one focal (which then becomes
+  /// the self-calibrated focal when none is known).
+  bool rotationsCoherent();
+  void considerPair(int a, int b, InitialPair& best) const;
+  void searchInitialPairs(InitialPair& best) const;
+  /// False when initialize() stops: a tripod solve, or no wide window with a 3D start.
+  bool startFromRotation(InitialPair& best);
+  void seedMap(const InitialPair& best);
   bool shouldBeKeyframe(int f) const;
   void addKeyframe(int f);
   int triangulateNewTracks(int f);

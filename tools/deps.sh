@@ -53,5 +53,17 @@ echo "deps.sh: installing ${missing[*]}" >&2
 export DEBIAN_FRONTEND=noninteractive
 # Wait for another apt or dpkg run (a parallel build, an unattended upgrade) instead of failing.
 lock_wait=(-o DPkg::Lock::Timeout=900)
-"${sudo_cmd[@]}" apt-get "${lock_wait[@]}" update -qq >&2
+# A mirror in the middle of a sync serves index files of the wrong size ("File has unexpected
+# size ... Mirror sync in progress?", CI 2026-12-06): apt-get update fails for minutes. Retry;
+# then install from the indexes that did download (apt keeps them), which fails clearly if a
+# package or a matching multiarch version is missing.
+for wait_s in 30 60 120 0; do
+  if "${sudo_cmd[@]}" apt-get "${lock_wait[@]}" update -qq >&2; then break; fi
+  if [ "$wait_s" -eq 0 ]; then
+    echo "deps.sh: apt-get update kept failing: installing from the indexes it did fetch" >&2
+    break
+  fi
+  echo "deps.sh: apt-get update failed; retrying in $wait_s s" >&2
+  sleep "$wait_s"
+done
 "${sudo_cmd[@]}" apt-get "${lock_wait[@]}" install -y -qq --no-install-recommends "${missing[@]}" >&2

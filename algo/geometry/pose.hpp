@@ -18,22 +18,21 @@ struct PoseCw {
   [[nodiscard]] Eigen::Vector3d centre() const { return -R_cw.transpose() * t_cw; }
 };
 
-/// Rotation by the axis-angle vector w (Rodrigues), exact for small angles too.
-inline Eigen::Matrix3d expSo3(const Eigen::Vector3d& w) {
-  const double theta2 = w.squaredNorm();
-  Eigen::Matrix3d W;
-  W << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
-  if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
-  const double theta = std::sqrt(theta2);
-  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
-         ((1.0 - std::cos(theta)) / theta2) * W * W;
-}
-
 /// The cross-product matrix [v]x: [v]x u = v x u.
 inline Eigen::Matrix3d skewSymmetric(const Eigen::Vector3d& v) {
   Eigen::Matrix3d S;
   S << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
   return S;
+}
+
+/// Rotation by the axis-angle vector w (Rodrigues), exact for small angles too.
+inline Eigen::Matrix3d expSo3(const Eigen::Vector3d& w) {
+  const double theta2 = w.squaredNorm();
+  const Eigen::Matrix3d W = skewSymmetric(w);
+  if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
+  const double theta = std::sqrt(theta2);
+  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
+         ((1.0 - std::cos(theta)) / theta2) * W * W;
 }
 
 /// Rotation vector of R (the inverse of expSo3 for angles below pi).

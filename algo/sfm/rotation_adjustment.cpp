@@ -143,7 +143,7 @@ void RotationAdjuster::linearise(std::span<const Eigen::Matrix3d> rotations,
     if (!projectDirection(k, E * y, px, &J_x, &J_f)) continue;
     L.r = px - o.xy;
     const double e = L.r.norm();
-    L.weight = huber > 0.0 && e > huber ? huber / e : 1.0;
+    L.weight = huberWeight(e, huber);
     L.Jd = J_x * E * rotations[c] * tangentBasis(d);
     // x_c = Exp(-w tau) R_c d: left update of R_c gives -E [y]x; w's update gives tau E [y]x,
     // and w depends on the previous camera, this one and the next (the trajectory's motion).

@@ -17,7 +17,10 @@ source "$root/.ci/cross_common.sh"
 # file offsets or sizes, and its doubles round the same on both ARM targets (IEEE, no FMA
 # contraction), so here it would only add minutes of emulation to the CI budget. Only these
 # programs and test binaries are built (the whole build is tools/cross.sh armhf without targets).
-EPITRACK_BUILD_TARGETS="epitrack-track epitrack_algo_tests epitrack_hal_tests
+# The target's libraries are unpacked from Debian packages (tools/cross_libs.sh) rather than
+# installed through multiarch: the aarch64 stage covers multiarch, this one the other way, and it
+# does not depend on the mirror serving the target's security updates (it did not, 2026-12-06).
+EPITRACK_CROSS_LIBS=download EPITRACK_BUILD_TARGETS="epitrack-track epitrack_algo_tests epitrack_hal_tests
   epitrack_hal_alloc_tests epitrack_lk_kernels_tests" \
   EPITRACK_EXPECT_LK_ISA=neon \
   EPITRACK_CTEST_ARGS="--timeout 600 -L ^(algo|hal|simd)$ -LE slow ${EPITRACK_CTEST_ARGS:-}" \

@@ -6,6 +6,10 @@
 #   EPITRACK_CMAKE_ARGS  extra configure arguments (e.g. -DEPITRACK_CPU_FLAGS_FILE=toolchains/cpu/cortex-a72.cmake)
 #   EPITRACK_CTEST_ARGS  extra ctest arguments for --test (e.g. -L algo)
 #   EPITRACK_BUILD_TARGETS  targets to build, space-separated (default: all)
+#   EPITRACK_CROSS_LIBS  where the target's libjpeg-turbo and libpng come from: multiarch (installed
+#                        with apt), download (unpacked into BUILD_DIR/target-libs by
+#                        tools/cross_libs.sh, no version coupling to the build machine), or auto
+#                        (default: multiarch, download when the multiarch install fails)
 # The build is Release with warnings as errors, tests on, the benchmark off (no OpenCV on the target).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -16,7 +20,7 @@ arch=$1; shift
 case "$arch" in
   aarch64) triple=aarch64-linux-gnu; group=cross-aarch64 ;;
   armhf) triple=arm-linux-gnueabihf; group=cross-armhf ;;
-  -h|--help) sed -n '2,9p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  -h|--help) sed -n '2,13p' "${BASH_SOURCE[0]}"; exit 0 ;;
   *) echo "cross.sh: unknown architecture '$arch' (aarch64 or armhf)" >&2; exit 2 ;;
 esac
 build=""
@@ -31,11 +35,25 @@ done
 build=${build:-$root/build/cross-$arch}
 jobs=${EPITRACK_JOBS:-$(nproc)}
 
-"$root/tools/deps.sh" base "$group"
+"$root/tools/deps.sh" base "$group-tools"
+libs=${EPITRACK_CROSS_LIBS:-auto}
+target_libs=""
+case "$libs" in
+  multiarch) "$root/tools/deps.sh" "$group" ;;
+  download) target_libs=$build/target-libs ;;
+  auto)
+    if ! "$root/tools/deps.sh" "$group"; then
+      echo "cross.sh: the multiarch install failed; unpacking the target's libraries instead" >&2
+      target_libs=$build/target-libs
+    fi
+    ;;
+  *) echo "cross.sh: EPITRACK_CROSS_LIBS must be multiarch, download or auto, not '$libs'" >&2; exit 2 ;;
+esac
+if [ -n "$target_libs" ]; then "$root/tools/cross_libs.sh" "$arch" "$target_libs"; fi
 
 cmake -S "$root" -B "$build" -DCMAKE_TOOLCHAIN_FILE="$root/toolchains/$triple.cmake" \
   -DCMAKE_BUILD_TYPE=Release -DEPITRACK_WERROR=ON -DEPITRACK_BUILD_TESTS=ON -DEPITRACK_BUILD_BENCH=OFF \
-  ${EPITRACK_CMAKE_ARGS:-} >/dev/null
+  -DEPITRACK_TARGET_LIBS="$target_libs" ${EPITRACK_CMAKE_ARGS:-} >/dev/null
 targets=()
 for t in ${EPITRACK_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
 cmake --build "$build" -j "$jobs" "${targets[@]}"

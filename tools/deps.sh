@@ -3,6 +3,7 @@
 #   tools/deps.sh base        compiler, CMake, Eigen, libjpeg-turbo, libpng, Catch2
 #   tools/deps.sh bench       + OpenCV (the optional benchmark comparison)
 #   tools/deps.sh cross-aarch64 | cross-armhf   cross compiler, target libraries (multiarch), qemu-user
+#   tools/deps.sh cross-aarch64-tools | cross-armhf-tools   the cross compiler and qemu-user only
 #   tools/deps.sh fuzz        clang and its sanitizer runtimes (libFuzzer)
 #   tools/deps.sh tidy        clang, clang-tidy (with run-clang-tidy), clang-format (.ci/tidy.sh)
 #   tools/deps.sh video       ffmpeg (ffprobe checks of written videos)
@@ -20,6 +21,8 @@ for group in "${@:-base}"; do
     bench) want+=(libopencv-dev) ;;
     cross-aarch64) add_arch=arm64; want+=(g++-aarch64-linux-gnu qemu-user libturbojpeg0-dev:arm64 libpng-dev:arm64) ;;
     cross-armhf) add_arch=armhf; want+=(g++-arm-linux-gnueabihf qemu-user libturbojpeg0-dev:armhf libpng-dev:armhf) ;;
+    cross-aarch64-tools) want+=(g++-aarch64-linux-gnu qemu-user) ;;
+    cross-armhf-tools) want+=(g++-arm-linux-gnueabihf qemu-user) ;;
     fuzz) want+=(clang libclang-rt-dev) ;;
     tidy) want+=(clang clang-tidy clang-format python3) ;;
     video) want+=(ffmpeg) ;;

@@ -57,11 +57,20 @@ export DEBIAN_FRONTEND=noninteractive
 # Wait for another apt or dpkg run (a parallel build, an unattended upgrade) instead of failing.
 lock_wait=(-o DPkg::Lock::Timeout=900)
 # A mirror in the middle of a sync serves index files of the wrong size ("File has unexpected
-# size ... Mirror sync in progress?", CI 2026-12-06): apt-get update fails for minutes. Retry;
-# then install from the indexes that did download (apt keeps them), which fails clearly if a
-# package or a matching multiarch version is missing.
+# size ... Mirror sync in progress?", CI 2026-12-06): apt-get update fails for minutes, often
+# for an index these packages do not need. So after a failed update, install at once when the
+# indexes that did download can provide them (a simulated install succeeds); otherwise retry,
+# then install from what did download, which fails clearly if a package or a matching multiarch
+# version is missing.
+installable() {
+  apt-get "${lock_wait[@]}" install -s -qq --no-install-recommends "${missing[@]}" >/dev/null 2>&1
+}
 for wait_s in 30 60 120 0; do
   if "${sudo_cmd[@]}" apt-get "${lock_wait[@]}" update -qq >&2; then break; fi
+  if installable; then
+    echo "deps.sh: apt-get update failed in part; the indexes it fetched have the packages" >&2
+    break
+  fi
   if [ "$wait_s" -eq 0 ]; then
     echo "deps.sh: apt-get update kept failing: installing from the indexes it did fetch" >&2
     break

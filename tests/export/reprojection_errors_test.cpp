@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <string>
 
 #include "algo/geometry/rolling_shutter.hpp"
 #include "tests/export/export_fixture.hpp"
@@ -92,4 +93,33 @@ TEST_CASE("reprojection errors of a rolling-shutter solve use each point's row",
   rec.readout_frames = 0.0;  // the same observations read as a global shutter
   computeReprojectionErrors(rec);
   CHECK(rec.mean_reproj_px > 1.0);
+}
+
+TEST_CASE("row misfit of a reconstruction: its residuals' row term",
+          "[export][reproj][row-misfit]") {
+  // 25 points a frame. Every observation moved right by 2 px at the bottom row and left by 2 px
+  // at the top (x residual +4 px over the image height, as a missed yaw velocity under a rolling
+  // shutter), with a small deterministic scatter so the frames have a residual scale.
+  Reconstruction rec = et::makeReconstruction(10, 4);
+  computeReprojectionErrors(rec);
+  const epitrack::RowMisfit exact = rowMisfitOf(rec);
+  CHECK(exact.frames_tested == 0);  // zero residuals: nothing to test against
+  int k = 0;
+  for (auto& o : rec.observations) {
+    o.x += 4.0 * (o.y - rec.intrinsics.cy) / rec.intrinsics.height + 0.02 * ((k * 7) % 5 - 2);
+    o.y += 0.02 * ((k * 3) % 5 - 2);
+    ++k;
+  }
+  computeReprojectionErrors(rec);
+  const epitrack::RowMisfit m = rowMisfitOf(rec);
+  CHECK(m.frames_tested == 8);  // the solved frames (every fourth unsolved)
+  CHECK(m.frames_sheared == 8);
+  CHECK(m.misfit);
+  CHECK(m.median_shear_px == Approx(4.0).margin(0.2));
+  // summary.json carries it (epitrack-solve sets it after the reprojection errors).
+  CHECK(formatSummaryJson(rec).find("\"row_misfit\"") == std::string::npos);
+  rec.row_misfit = m;
+  const std::string json = formatSummaryJson(rec);
+  CHECK(json.find("\"row_misfit\"") != std::string::npos);
+  CHECK(json.find("\"frames_sheared\": 8") != std::string::npos);
 }

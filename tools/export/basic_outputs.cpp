@@ -248,6 +248,19 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("ba_iterations", rec.readout_ba_iterations);
     j.endObject();
   }
+  if (rec.row_misfit.frames_tested > 0) {
+    const RowMisfit& m = rec.row_misfit;
+    j.key("row_misfit");
+    j.beginObject();
+    j.field("misfit", m.misfit);
+    j.field("frames_tested", m.frames_tested);
+    j.field("frames_sheared", m.frames_sheared);
+    j.field("median_shear_px", m.median_shear_px);
+    j.field("p90_shear_px", m.p90_shear_px);
+    j.field("max_shear_px", m.max_shear_px);
+    j.field("max_shear_frame", m.max_shear_frame);
+    j.endObject();
+  }
   if (rec.centre_sd_steps >= 0.0) {
     j.key("centre_uncertainty");
     j.beginObject();

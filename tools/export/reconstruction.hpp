@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/sfm/row_misfit.hpp"
 
 namespace epitrack::io {
 
@@ -62,6 +63,9 @@ struct PointObservation {
   double y = 0.0;
   double residual_px =
       std::numeric_limits<double>::quiet_NaN();  ///< reprojection error, NaN: unknown
+  /// The residual as a vector, observed minus projected (pixels; NaN: unknown).
+  double residual_dx = std::numeric_limits<double>::quiet_NaN();
+  double residual_dy = std::numeric_limits<double>::quiet_NaN();
   /// Left out of the model as an outlier (computeReprojectionErrors: residual above the outlier
   /// threshold, or the point behind the camera): not in any mean, count or COLMAP track.
   bool outlier = false;
@@ -154,6 +158,9 @@ struct Reconstruction {
   /// --readout auto: the model was kept (false: the estimate was not significantly above zero or
   /// not observable, and the global-shutter solve is written unchanged).
   bool readout_applied = true;
+  /// Whether the camera model explains the rows (algo/sfm/row_misfit.hpp, computed from the
+  /// residuals by io::rowMisfitOf; summary.json "row_misfit" when frames_tested > 0).
+  RowMisfit row_misfit;
   std::string motion = "general";  ///< "general", "planar-scene", "rotation-only", ...
   std::string matcher;             ///< 2D tracks from "lk" or "descriptors" ("": not told)
   /// "ok" (at least 90 % of the frames solved), "partial" (a reconstruction of fewer; see

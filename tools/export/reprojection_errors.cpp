@@ -57,6 +57,8 @@ void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
   all.reserve(rec.observations.size());
   for (PointObservation& o : rec.observations) {
     o.residual_px = kNaN;
+    o.residual_dx = kNaN;
+    o.residual_dy = kNaN;
     o.outlier = false;
     const auto cam = camera_of_frame.find(o.frame);
     const auto pt = point_of_id.find(o.point_id);
@@ -66,7 +68,9 @@ void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
       o.outlier = true;  // behind the camera (or no row sees it): no residual, no place in a track
       continue;
     }
-    o.residual_px = (pixel - Eigen::Vector2d(o.x, o.y)).norm();
+    o.residual_dx = o.x - pixel.x();
+    o.residual_dy = o.y - pixel.y();
+    o.residual_px = std::sqrt(o.residual_dx * o.residual_dx + o.residual_dy * o.residual_dy);
     if (!std::isfinite(o.residual_px) || (outlier_px > 0.0 && o.residual_px > outlier_px)) {
       o.outlier = true;
       continue;
@@ -102,6 +106,19 @@ void computeReprojectionErrors(Reconstruction& rec, double outlier_px) {
                     *std::max_element(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(mid)));
   }
   rec.median_reproj_px = median;
+}
+
+RowMisfit rowMisfitOf(const Reconstruction& rec, const RowMisfitOptions& options) {
+  std::vector<RowResidual> residuals;
+  residuals.reserve(rec.observations.size());
+  for (const PointObservation& o : rec.observations) {
+    if (o.outlier || !std::isfinite(o.residual_dx) || !std::isfinite(o.residual_dy)) continue;
+    residuals.push_back({o.frame, o.x, o.y, o.residual_dx, o.residual_dy});
+  }
+  std::stable_sort(residuals.begin(), residuals.end(),
+                   [](const RowResidual& a, const RowResidual& b) { return a.frame < b.frame; });
+  return measureRowMisfit(residuals, rec.intrinsics.cx, rec.intrinsics.cy,
+                          static_cast<double>(rec.intrinsics.height), options);
 }
 
 }  // namespace epitrack::io

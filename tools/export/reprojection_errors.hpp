@@ -30,4 +30,8 @@ bool projectPoint(const Reconstruction& rec, const SolvedCamera& camera, const E
 /// and left out of every mean and count and of the COLMAP tracks, their residual still recorded.
 void computeReprojectionErrors(Reconstruction& rec, double outlier_px = 0.0);
 
+/// The row-shear test (algo/sfm/row_misfit.hpp) on the residuals computeReprojectionErrors left
+/// (outliers out): does the camera model, global or rolling shutter, explain the image rows?
+RowMisfit rowMisfitOf(const Reconstruction& rec, const RowMisfitOptions& options = {});
+
 }  // namespace epitrack::io

@@ -513,6 +513,7 @@ void buildReconstruction(SolveRun& run, const Solver& solver) {
     (void)sf;
   }
   io::computeReprojectionErrors(rec, run.outlierPx());
+  rec.row_misfit = io::rowMisfitOf(rec);
   run.clock.lap("scene_frame");
 }
 
@@ -564,6 +565,23 @@ const char* fallbackNote(const std::string& fallback) {
   return "";
 }
 
+// A camera model that leaves the rows unexplained (algo/sfm/row_misfit.hpp) is said even under
+// --quiet: the poses are written, but an inserted object will slide against the plate.
+void printRowMisfit(const io::Reconstruction& rec) {
+  const RowMisfit& m = rec.row_misfit;
+  if (!m.misfit) return;
+  const char* advice = rec.readout_source.empty() || !rec.readout_applied
+                           ? "a rolling shutter? try --readout auto or --readout-ms MS"
+                           : "the rolling-shutter model does not follow this motion (jitter "
+                             "faster than the frame rate, or key frames far apart in time)";
+  std::fprintf(stderr,
+               "epitrack-solve: warning: the residuals grow with the image row in %d of %d "
+               "frames (row shear median %.2f px, 90th percentile %.2f px, largest %.2f px at "
+               "frame %lld): %s; summary.json row_misfit\n",
+               m.frames_sheared, m.frames_tested, m.median_shear_px, m.p90_shear_px, m.max_shear_px,
+               static_cast<long long>(m.max_shear_frame), advice);
+}
+
 // The one-line result on stderr (no nan in what a user reads).
 void printResult(const SolveRun& run, const Solver& solver) {
   const auto& rec = run.rec;
@@ -592,6 +610,7 @@ void printResult(const SolveRun& run, const Solver& solver) {
                 rec.seconds.total, run.o.out_dir.c_str());
   if (run.o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
+  printRowMisfit(rec);
 }
 
 // The exit code (solve_pipeline.hpp, runSolve), with the reason on stderr.

@@ -580,6 +580,38 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
   }
 }
 
+bool BundleAdjuster::trajectoryObservationJacobian(std::span<const BaCamera> cameras,
+                                                   std::span<const Eigen::Vector3d> points,
+                                                   const BaObservation& o, const BaIntrinsics& k,
+                                                   const BundleAdjustmentOptions& options,
+                                                   const Layout& L,
+                                                   TrajectoryObservationJacobian& out) const {
+  const auto ci = static_cast<std::size_t>(o.camera);
+  Eigen::Vector2d uv;
+  Eigen::Matrix<double, 2, 6> Jc;
+  Eigen::Matrix<double, 2, 6> Jm;
+  Eigen::Matrix<double, 2, 3> Jk_intr;
+  Eigen::Vector2d Jl;
+  if (!projectRollingShutterWithJacobians(cameras[ci], motions_[ci], shutter_, k,
+                                          points[static_cast<std::size_t>(o.point)], uv, Jc, Jm,
+                                          out.Jp, Jk_intr, &Jl))
+    return false;
+  out.r = uv - o.xy;
+  out.w = huberWeight(out.r.norm(), options.huber_px);
+  out.Jk.setZero();
+  for (int j = 0; j < L.nk; ++j) out.Jk.col(j) = L.kcol[j] == 3 ? Jl : Jk_intr.col(L.kcol[j]);
+  // The motion is the trajectory's: its Jacobian goes to the previous, own and next pose.
+  const Eigen::Matrix<double, 2, 18> JmD = Jm * motion_D_[ci];
+  out.J[0] = JmD.middleCols<6>(0);
+  out.J[1] = Jc + JmD.middleCols<6>(6);
+  out.J[2] = JmD.middleCols<6>(12);
+  const BaTrajectoryNeighbours& nb = neighbours_[ci];
+  const int touched[3] = {nb.previous, o.camera, nb.next};
+  for (int a = 0; a < 3; ++a)
+    out.slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+  return true;
+}
+
 void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
                                          std::span<const Eigen::Vector3d> points,
                                          std::span<const BaObservation> observations,
@@ -601,34 +633,17 @@ void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
     motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), &motion_D_[c]);
   for (int i = 0; i < no; ++i) {
     const auto ii = static_cast<std::size_t>(i);
-    const BaObservation& o = observations[ii];
-    const auto pi = static_cast<std::size_t>(o.point);
-    const auto ci = static_cast<std::size_t>(o.camera);
-    Eigen::Vector2d uv;
-    Eigen::Matrix<double, 2, 6> Jc;
-    Eigen::Matrix<double, 2, 6> Jm;
-    Eigen::Matrix<double, 2, 3> Jp;
-    Eigen::Matrix<double, 2, 3> Jk_intr;
-    Eigen::Vector2d Jl;
+    const auto pi = static_cast<std::size_t>(observations[ii].point);
     Wk_[ii].setZero();
-    if (!projectRollingShutterWithJacobians(cameras[ci], motions_[ci], shutter_, k, points[pi], uv,
-                                            Jc, Jm, Jp, Jk_intr, &Jl))
+    TrajectoryObservationJacobian oj;
+    if (!trajectoryObservationJacobian(cameras, points, observations[ii], k, options, L, oj))
       continue;
-    const Eigen::Vector2d r = uv - o.xy;
-    const double w = huberWeight(r.norm(), options.huber_px);
-    Eigen::Matrix<double, 2, 4> Jk = Eigen::Matrix<double, 2, 4>::Zero();
-    for (int j = 0; j < nk; ++j) Jk.col(j) = L.kcol[j] == 3 ? Jl : Jk_intr.col(L.kcol[j]);
-    // The motion is the trajectory's: its Jacobian goes to the previous, own and next pose.
-    Eigen::Matrix<double, 2, 6> J[3];
-    const Eigen::Matrix<double, 2, 18> JmD = Jm * motion_D_[ci];
-    J[0] = JmD.middleCols<6>(0);
-    J[1] = Jc + JmD.middleCols<6>(6);
-    J[2] = JmD.middleCols<6>(12);
-    const BaTrajectoryNeighbours& nb = neighbours_[ci];
-    const int touched[3] = {nb.previous, o.camera, nb.next};
-    int slot[3];
-    for (int a = 0; a < 3; ++a)
-      slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+    const Eigen::Vector2d& r = oj.r;
+    const double w = oj.w;
+    const auto& J = oj.J;
+    const auto& Jk = oj.Jk;
+    const auto& Jp = oj.Jp;
+    const int* slot = oj.slot;
     for (int a = 0; a < 3; ++a) {
       const int sa = slot[a];
       if (sa < 0) continue;
@@ -958,31 +973,78 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
   summary.final_cost = cost;
   summary.final_rms_px = rms;
   if (L.traj && options.refine_readout)
-    summary.line_delay_std_error =
-        lineDelayStdError(cameras, points, points_fixed, observations, k, options, L, cost);
+    lineDelayStdErrors(cameras, points, points_fixed, observations, k, options, L, cost, summary);
   return summary;
 }
 
-double BundleAdjuster::lineDelayStdError(
-    std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
-    std::span<const uint8_t> points_fixed, std::span<const BaObservation> observations,
-    const BaIntrinsics& k, const BundleAdjustmentOptions& options, const Layout& L, double cost) {
+void BundleAdjuster::lineDelayStdErrors(std::span<const BaCamera> cameras,
+                                        std::span<const Eigen::Vector3d> points,
+                                        std::span<const uint8_t> points_fixed,
+                                        std::span<const BaObservation> observations,
+                                        const BaIntrinsics& k,
+                                        const BundleAdjustmentOptions& options, const Layout& L,
+                                        double cost, BundleAdjustmentSummary& summary) {
   // var = sigma^2 e^T A^-1 e on the reduced system at the minimum (the points eliminated, which
   // is the marginal covariance), A = L L^T: |L^-1 e|^2. A tiny damping keeps the scale's gauge
   // direction (held by nothing else) from making A singular.
   linearizeTrajectory(cameras, points, observations, k, options, L);
-  if (!solveReducedSystem(1e-8, points_fixed, L)) return 0.0;
+  if (!solveReducedSystem(1e-8, points_fixed, L)) return;
   int index = -1;
   for (int j = 0; j < L.nk; ++j)
     if (L.kcol[j] == 3) index = L.k0 + j;
-  if (index < 0) return 0.0;
+  if (index < 0) return;
   auto z = delta_.head(L.n);
   z.setZero();
   z(index) = 1.0;
-  A_.topLeftCorner(L.n, L.n).triangularView<Eigen::Lower>().solveInPlace(z);
+  const auto Lfactor = A_.topLeftCorner(L.n, L.n).triangularView<Eigen::Lower>();
+  Lfactor.solveInPlace(z);
   const double dof = std::max(1.0, 2.0 * L.no - L.n - 3.0 * L.np);
   const double sigma2 = 2.0 * cost / dof;
-  return std::sqrt(sigma2 * z.squaredNorm());
+  const double independent_variance = sigma2 * z.squaredNorm();
+  // That variance assumes every observation's error independent. A tracked feature's error is
+  // not: its drift and its corner's bias persist along the track, and on tracked rendered clips
+  // the readout scattered 5-7x that error between seeds (issue 27). The cluster-robust sandwich
+  // (one cluster per point) measures the scatter of the points' pulls on the readout instead;
+  // the larger of the two is reported.
+  Lfactor.transpose().solveInPlace(z);  // u = A^-1 e
+  const double cluster_variance =
+      lineDelayClusterVariance(cameras, points, points_fixed, observations, k, options, L, z);
+  summary.line_delay_std_error_independent = std::sqrt(independent_variance);
+  summary.line_delay_std_error = std::sqrt(std::max(independent_variance, cluster_variance));
+}
+
+double BundleAdjuster::lineDelayClusterVariance(
+    std::span<const BaCamera> cameras, std::span<const Eigen::Vector3d> points,
+    std::span<const uint8_t> points_fixed, std::span<const BaObservation> observations,
+    const BaIntrinsics& k, const BundleAdjustmentOptions& options, const Layout& L,
+    const Eigen::Ref<const Eigen::VectorXd>& u) {
+  // Point p's pull on the readout: u . h_p, h_p its reduced gradient (its observations' w J^T r
+  // on the cameras and intrinsics, its own point eliminated: h_p = g_c,p - W_p V_p^-1 g_p). Along
+  // u the observations move by J u and the point answers with dX = -V_p^-1 W_p^T u, so
+  // u . h_p = sum w r^T J u - g_p^T V_p^-1 (sum w Jp^T J u).
+  double sum = 0.0;
+  int clusters = 0;
+  for (int p = 0; p < L.np; ++p) {
+    const auto pp = static_cast<std::size_t>(p);
+    double pull = 0.0;
+    Eigen::Vector3d point_response = Eigen::Vector3d::Zero();
+    for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a) {
+      const BaObservation& o =
+          observations[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+      TrajectoryObservationJacobian oj;
+      if (!trajectoryObservationJacobian(cameras, points, o, k, options, L, oj)) continue;
+      Eigen::Vector2d Ju = Eigen::Vector2d::Zero();
+      for (int j = 0; j < L.nk; ++j) Ju += oj.Jk.col(j) * u(L.k0 + j);
+      for (int c = 0; c < 3; ++c)
+        if (oj.slot[c] >= 0) Ju += oj.J[c] * u.segment<6>(oj.slot[c]);
+      pull += oj.w * oj.r.dot(Ju);
+      point_response += oj.w * oj.Jp.transpose() * Ju;
+    }
+    if (!pointIsFixed(points_fixed, p)) pull -= gp_[pp].dot(Vinv_[pp] * point_response);
+    sum += pull * pull;
+    ++clusters;
+  }
+  return clusters > 1 ? sum * clusters / (clusters - 1.0) : 0.0;
 }
 
 namespace {

@@ -82,10 +82,13 @@ struct BundleAdjustmentSummary {
   double initial_rms_px = 0.0;  ///< RMS reprojection error before and after (plain, not robust)
   double final_rms_px = 0.0;
   /// solveTrajectory: the line delay at the end (frame intervals per row) and, with
-  /// refine_readout, its standard error (from the reduced system's inverse at the minimum, scaled
-  /// by the residuals' variance; 0 when not refined).
+  /// refine_readout, its standard error: the larger of the one that takes every observation's
+  /// error as independent (the reduced system's inverse at the minimum scaled by the residuals'
+  /// variance, `line_delay_std_error_independent`) and the cluster-robust one (one cluster per
+  /// point: a track's errors are correlated along it). 0 when not refined.
   double line_delay = 0.0;
   double line_delay_std_error = 0.0;
+  double line_delay_std_error_independent = 0.0;
 };
 
 /// Sparse bundle adjustment by Levenberg-Marquardt with the Schur complement (Triggs et al.,
@@ -239,14 +242,41 @@ class BundleAdjuster {
                            std::span<const Eigen::Vector3d> points,
                            std::span<const BaObservation> observations, const BaIntrinsics& k,
                            const BundleAdjustmentOptions& options, const Layout& L);
+  /// One observation of the smooth-trajectory model linearized: its residual r, Huber weight w,
+  /// Jacobians on the previous, own and next camera's pose (J, at reduced-system slots `slot`,
+  /// -1: fixed or none), on the refined intrinsics (Jk, `Layout::kcol` order) and on the point.
+  struct TrajectoryObservationJacobian {
+    Eigen::Vector2d r = Eigen::Vector2d::Zero();
+    double w = 0.0;
+    Eigen::Matrix<double, 2, 6> J[3];
+    int slot[3] = {-1, -1, -1};
+    Eigen::Matrix<double, 2, 4> Jk = Eigen::Matrix<double, 2, 4>::Zero();
+    Eigen::Matrix<double, 2, 3> Jp = Eigen::Matrix<double, 2, 3>::Zero();
+  };
+  /// Fills `out` for observation `o` (motion_D_ and motions_ current); false: not projected.
+  bool trajectoryObservationJacobian(std::span<const BaCamera> cameras,
+                                     std::span<const Eigen::Vector3d> points,
+                                     const BaObservation& o, const BaIntrinsics& k,
+                                     const BundleAdjustmentOptions& options, const Layout& L,
+                                     TrajectoryObservationJacobian& out) const;
+  /// The line delay's variance from the scatter of each point's pull on it (the cluster-robust
+  /// sandwich, one cluster per point): `u` = A^-1 e_readout on the reduced system.
+  double lineDelayClusterVariance(std::span<const BaCamera> cameras,
+                                  std::span<const Eigen::Vector3d> points,
+                                  std::span<const uint8_t> points_fixed,
+                                  std::span<const BaObservation> observations,
+                                  const BaIntrinsics& k, const BundleAdjustmentOptions& options,
+                                  const Layout& L, const Eigen::Ref<const Eigen::VectorXd>& u);
   /// The trajectory's motions of every camera from the current poses (into motions_).
   void updateTrajectoryMotions(std::span<const BaCamera> cameras);
-  /// The line delay's standard error at the current parameters (after the iterations).
-  double lineDelayStdError(std::span<const BaCamera> cameras,
-                           std::span<const Eigen::Vector3d> points,
-                           std::span<const uint8_t> points_fixed,
-                           std::span<const BaObservation> observations, const BaIntrinsics& k,
-                           const BundleAdjustmentOptions& options, const Layout& L, double cost);
+  /// The line delay's standard errors at the current parameters (after the iterations), into
+  /// `summary` (line_delay_std_error and line_delay_std_error_independent).
+  void lineDelayStdErrors(std::span<const BaCamera> cameras,
+                          std::span<const Eigen::Vector3d> points,
+                          std::span<const uint8_t> points_fixed,
+                          std::span<const BaObservation> observations, const BaIntrinsics& k,
+                          const BundleAdjustmentOptions& options, const Layout& L, double cost,
+                          BundleAdjustmentSummary& summary);
   /// Adds the scale's gauge constraint (centreStandardDeviations) to A_, over the cameras whose
   /// `undetermined` entry is not negative; false: none of them moves.
   bool holdScale(std::span<const BaCamera> cameras, const BaCamera& anchor_camera,

@@ -5,6 +5,7 @@
 // frame's middle-row pose and the camera's motion over the readout (constant angular and linear
 // velocity, here the trajectory's own at the frame time).
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -211,18 +212,60 @@ TEST_CASE("A rolling-shutter render with readout 0 or no motion is the global re
   CHECK(draw(moving) != reference);
 }
 
-TEST_CASE("epitrack-solve --readout-ms writes the motions the augmented frames are drawn with",
-          "[render][rolling-shutter][slow][no-asan]") {
+// rolling_shutter.txt as written (docs/formats.md): the readout line and each frame's motion.
+struct WrittenMotions {
+  double readout = 0, rows = 0, row = 0, ms = 0, fps = 0;
+  std::vector<double> t;
+  std::vector<Eigen::Vector3d> angular;
+};
+
+WrittenMotions readWrittenMotions(const std::string& path) {
+  std::istringstream in(epitrack::test::readWholeFile(path));
+  std::string line;
+  WrittenMotions m;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream f(line);
+    if (line.rfind("readout ", 0) == 0) {
+      std::string word;
+      f >> word >> m.readout >> m.rows >> m.row >> m.ms >> m.fps;
+      continue;
+    }
+    double t = 0;
+    Eigen::Vector3d w, v;
+    f >> t >> w.x() >> w.y() >> w.z() >> v.x() >> v.y() >> v.z();
+    REQUIRE_FALSE(f.fail());
+    REQUIRE(w.allFinite());
+    REQUIRE(v.allFinite());
+    m.t.push_back(t);
+    m.angular.push_back(w);
+  }
+  return m;
+}
+
+// A fast orbit (0.75 deg per frame about a wandering target) exposed with a 30 ms readout.
+std::string synthFastRollingOrbit(epitrack::test::TempDir& dir) {
   namespace et = epitrack::test;
-  et::TempDir dir("rs-solve");
   const std::string clip = dir.file("clip");
   REQUIRE(et::run(et::binaryPath("tools/synth/epitrack-synth") +
                   " --scene orbit --orbit-speed 0.75 --target-wander 1 --frames 30 --size 320x240 "
                   "--focal 280 --rolling-shutter 30ms --out " +
                   clip + " 2>/dev/null") == 0);
-  const std::string solve = et::binaryPath("tools/solve/epitrack-solve") + " " + clip +
-                            "/frames --intrinsics " + clip +
-                            "/intrinsics.txt --quiet --render cube";
+  return clip;
+}
+
+// epitrack-solve on the clip's frames with its intrinsics given, quiet.
+std::string solveWithIntrinsics(const std::string& clip) {
+  namespace et = epitrack::test;
+  return et::binaryPath("tools/solve/epitrack-solve") + " " + clip + "/frames --intrinsics " +
+         clip + "/intrinsics.txt --quiet";
+}
+
+TEST_CASE("epitrack-solve --readout-ms writes the motions the augmented frames are drawn with",
+          "[render][rolling-shutter][slow][no-asan]") {
+  namespace et = epitrack::test;
+  et::TempDir dir("rs-solve");
+  const std::string solve = solveWithIntrinsics(synthFastRollingOrbit(dir)) + " --render cube";
   REQUIRE(et::run(solve + " --readout-ms 30 --out " + dir.file("rs")) == 0);
   REQUIRE(et::run(solve + " --out " + dir.file("gs")) == 0);
   // One motion per camera of cameras.tum, same t, and the readout line.
@@ -233,37 +276,61 @@ TEST_CASE("epitrack-solve --readout-ms writes the motions the augmented frames a
     while (std::getline(in, line))
       if (!line.empty() && line[0] != '#') tum_t.push_back(std::stod(line));
   }
-  std::istringstream in(et::readWholeFile(dir.file("rs/rolling_shutter.txt")));
-  std::string line;
-  std::vector<double> motion_t;
-  double readout = 0, rows = 0, row = 0, ms = 0, fps = 0;
+  const WrittenMotions m = readWrittenMotions(dir.file("rs/rolling_shutter.txt"));
   double largest_w = 0.0;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream f(line);
-    if (line.rfind("readout ", 0) == 0) {
-      std::string word;
-      f >> word >> readout >> rows >> row >> ms >> fps;
-      continue;
-    }
-    double t = 0;
-    Eigen::Vector3d w, v;
-    f >> t >> w.x() >> w.y() >> w.z() >> v.x() >> v.y() >> v.z();
-    REQUIRE_FALSE(f.fail());
-    REQUIRE(w.allFinite());
-    REQUIRE(v.allFinite());
-    largest_w = std::max(largest_w, w.norm());
-    motion_t.push_back(t);
-  }
-  CHECK(readout == Approx(0.9));
-  CHECK(rows == 240);
-  CHECK(row == 119.5);
-  CHECK(ms == 30.0);
-  CHECK(fps == 30.0);
-  CHECK(motion_t == tum_t);
+  for (const auto& w : m.angular) largest_w = std::max(largest_w, w.norm());
+  CHECK(m.readout == Approx(0.9));
+  CHECK(m.rows == 240);
+  CHECK(m.row == 119.5);
+  CHECK(m.ms == 30.0);
+  CHECK(m.fps == 30.0);
+  CHECK(m.t == tum_t);
   CHECK(tum_t.size() == 30);
   CHECK(largest_w > 0.0);
   CHECK(et::readWholeFile(dir.file("rs/summary.json")).find("\"rolling_shutter.txt\"") !=
         std::string::npos);
   CHECK(et::run("test -e '" + dir.file("gs/rolling_shutter.txt") + "'") != 0);
+}
+
+// The motions of a smooth-trajectory solve are the camera's per frame interval whatever the
+// readout (the rows' poses use readout x motion): an estimated readout writes the motions the
+// given readout writes, not ones rescaled to the readout the estimate started from.
+TEST_CASE("epitrack-solve --readout auto writes the motions of the readout it estimates",
+          "[render][rolling-shutter][slow][no-asan]") {
+  namespace et = epitrack::test;
+  et::TempDir dir("rs-auto");
+  const std::string solve = solveWithIntrinsics(synthFastRollingOrbit(dir));
+  REQUIRE(et::run(solve + " --readout-ms 30 --out " + dir.file("given")) == 0);
+  REQUIRE(et::run(solve + " --readout auto --out " + dir.file("auto") + " 2>" +
+                  dir.file("auto.stderr")) == 0);
+  const std::string summary = et::readWholeFile(dir.file("auto/summary.json"));
+  const double ms = et::jsonNumber(summary, "readout_ms");
+  const double sigma = et::jsonNumber(summary, "readout_std_error_ms");
+  const WrittenMotions given = readWrittenMotions(dir.file("given/rolling_shutter.txt"));
+  const WrittenMotions estimated = readWrittenMotions(dir.file("auto/rolling_shutter.txt"));
+  REQUIRE(given.t == estimated.t);
+  std::vector<double> ratio;
+  for (size_t i = 0; i < given.t.size(); ++i)
+    ratio.push_back(estimated.angular[i].norm() / given.angular[i].norm());
+  std::sort(ratio.begin(), ratio.end());
+  std::printf(
+      "readout auto on a fast RS orbit: %.2f +- %.2f ms (truth 30), motion ratio to the "
+      "given readout's: min %.4f, max %.4f\n",
+      ms, sigma, ratio.front(), ratio.back());
+  CHECK(summary.find("\"readout_applied\": true") != std::string::npos);
+  // Applied with a standard error above 0.1 frame interval (3.3 ms): said, even under --quiet;
+  // otherwise not.
+  const bool observable = summary.find("\"readout_observable\": true") != std::string::npos;
+  CHECK(observable == (sigma <= 3.3 + 1e-9));
+  CHECK(observable == (et::readWholeFile(dir.file("auto.stderr")).find("poorly determined") ==
+                       std::string::npos));
+  CHECK(std::abs(ms - 30.0) <= 3.0 * sigma);
+  CHECK(estimated.ms == Approx(ms).epsilon(1e-6));
+  CHECK(et::jsonNumber(summary, "fps") == 30.0);
+  CHECK(et::jsonNumber(summary, "readout_frames") == Approx(ms * 30.0 / 1000.0));
+  CHECK(estimated.readout == Approx(ms * 30.0 / 1000.0).epsilon(1e-6));
+  CHECK(ratio.front() > 0.95);  // rescaled to a 0.5-frame start the ratio was about 0.57
+  CHECK(ratio.back() < 1.05);
+  CHECK(et::jsonNumber(summary, "mean_reproj_px") <=
+        1.1 * et::jsonNumber(et::readWholeFile(dir.file("given/summary.json")), "mean_reproj_px"));
 }

@@ -236,6 +236,10 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.key("rolling_shutter");
     j.beginObject();
     j.field("readout_ms", rec.readout_ms);
+    if (rec.readout_fps > 0.0) {
+      j.field("readout_frames", rec.readout_ms * rec.readout_fps / 1000.0);
+      j.field("fps", rec.readout_fps);
+    }
     j.field("readout_source", rec.readout_source);
     j.field("readout_observable", rec.readout_observable);
     if (rec.readout_source == "estimated") {

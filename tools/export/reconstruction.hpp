@@ -153,11 +153,15 @@ struct Reconstruction {
   int readout_ba_iterations = 0;  ///< the joint rolling-shutter adjustment's iterations
   /// "given" (--readout-ms), "estimated" (--readout auto), "" (global shutter: no block).
   std::string readout_source;
-  bool readout_observable = true;     ///< --readout auto: the estimate's standard error was small
+  /// --readout auto: the estimate's standard error was small (at most 0.1 frame interval).
+  bool readout_observable = true;
   double readout_std_error_ms = 0.0;  ///< --readout auto: that standard error
-  /// --readout auto: the model was kept (false: the estimate was not significantly above zero or
-  /// not observable, and the global-shutter solve is written unchanged).
+  /// --readout auto: the model was kept (false: the estimate was not significantly above zero,
+  /// and the global-shutter solve is written unchanged).
   bool readout_applied = true;
+  /// The frame rate readout_ms is converted at (the input's, 30 when it has none): the models
+  /// measure the readout in frame intervals, summary.json says both.
+  double readout_fps = 0.0;
   /// Whether the camera model explains the rows (algo/sfm/row_misfit.hpp, computed from the
   /// residuals by io::rowMisfitOf; summary.json "row_misfit" when frames_tested > 0).
   RowMisfit row_misfit;

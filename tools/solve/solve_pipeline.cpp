@@ -329,6 +329,7 @@ void recordTripodReadout(SolveRun& run, const SolverSummary& s, double fps) {
   const bool given = run.o.readout_ms > 0.0;
   const double readout_frames = given ? run.o.readout_ms * fps / 1000.0 : s.tripod_readout_frames;
   run.rec.readout_ms = readout_frames * 1000.0 / fps;
+  run.rec.readout_fps = fps;
   run.rec.readout_source = given ? "given" : "estimated";
   run.rec.readout_reference_row = 0.5 * (run.height - 1);
   run.rec.readout_rms_before_px = s.tripod_rms_before_px;
@@ -446,6 +447,7 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   run.rec.readout_rms_before_px = r.rms_before_px;
   run.rec.readout_rms_after_px = r.rms_after_px;
   run.rec.readout_ba_iterations = r.ba_iterations;
+  run.rec.readout_fps = fps;
   bool keep = true;
   if (given) {
     run.rec.readout_ms = run.o.readout_ms;
@@ -464,10 +466,13 @@ void refineReadout(SolveRun& run, const Solver& solver) {
     run.rec.readout_ms = e.readout_frames * 1000.0 / fps;
     run.rec.readout_std_error_ms = e.std_error * 1000.0 / fps;
     run.rec.readout_observable = e.observable;
-    // Kept when observable and clearly above zero (three standard errors and 1 ms): a global
-    // shutter's estimate is zero within its error, and its solve is then written unchanged
-    // (the motions would only fit noise).
-    keep = e.observable && e.readout_frames > std::max(3.0 * e.std_error, 0.001 * fps);
+    // Kept when clearly above zero (three standard errors and 1 ms): a global shutter's estimate
+    // is zero within its error, and its solve is then written unchanged (the motions would only
+    // fit noise). A kept estimate need not be well determined: on tracked clips its error is
+    // several ms (the tracks' errors persist along each track; bundle_adjustment.cpp,
+    // lineDelayStdErrors), still far nearer the truth than zero; readout_observable says which.
+    keep = std::isfinite(e.std_error) && e.std_error > 0.0 &&
+           e.readout_frames > std::max(3.0 * e.std_error, 0.001 * fps);
     run.rec.readout_applied = keep;
     run.progress.message("rolling shutter: readout estimated " +
                          std::to_string(run.rec.readout_ms).substr(0, 5) + " ms +- " +
@@ -480,15 +485,8 @@ void refineReadout(SolveRun& run, const Solver& solver) {
       motions.clear();
     }
   }
-  // The motions are the readout's (the estimate rescales those fitted with the nominal one:
-  // the projection depends on line delay x motion only).
-  if (keep && !given && run.rec.readout_ms > 0.0) {
-    const double to_readout = kNominalReadoutFrames / (run.rec.readout_ms * fps / 1000.0);
-    for (auto& m : motions) {
-      m.angular *= to_readout;
-      m.linear *= to_readout;
-    }
-  }
+  // The smooth-trajectory motions are the trajectory's per frame interval, whatever the readout
+  // (the projection uses line delay x motion): written as they are, with the readout found.
   if (keep) run.rec.readout_frames = given ? readout_frames : run.rec.readout_ms * fps / 1000.0;
   if (keep && options.refine_focal && r.ba_iterations > 0) run.readout_focal_px = K.fx;
   run.clock.lap("rolling_shutter");
@@ -565,6 +563,16 @@ const char* fallbackNote(const std::string& fallback) {
   return "";
 }
 
+// An estimated readout that was applied but is poorly determined (--readout auto) is said even
+// under --quiet: the user may know the camera's readout better.
+void printUncertainReadout(const io::Reconstruction& rec) {
+  if (rec.readout_source != "estimated" || !rec.readout_applied || rec.readout_observable) return;
+  std::fprintf(stderr,
+               "epitrack-solve: warning: the readout estimated, %.1f ms +- %.1f ms, is applied "
+               "but poorly determined; give --readout-ms MS if the camera's readout is known\n",
+               rec.readout_ms, rec.readout_std_error_ms);
+}
+
 // A camera model that leaves the rows unexplained (algo/sfm/row_misfit.hpp) is said even under
 // --quiet: the poses are written, but an inserted object will slide against the plate.
 void printRowMisfit(const io::Reconstruction& rec) {
@@ -610,6 +618,7 @@ void printResult(const SolveRun& run, const Solver& solver) {
                 rec.seconds.total, run.o.out_dir.c_str());
   if (run.o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
+  printUncertainReadout(rec);
   printRowMisfit(rec);
 }
 

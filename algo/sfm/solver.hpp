@@ -71,6 +71,13 @@ struct SolverOptions {
   bool keyframe_relative_pose = true;
   int keyframe_min_pair_inliers = 30;
   int keyframe_min_scale_points = 5;
+  /// The relative pose must be one its matches determine (relativePoseOverSeeds,
+  /// algo/geometry/determined_relative_pose.hpp): E-RANSAC with this many seeds, the rotations
+  /// of the hypotheses within a tenth of the most inliers within this many degrees of the best
+  /// one (well-determined pairs: 1.5 at most on TUM and the rendered scenes); otherwise the view
+  /// waits for PnP.
+  int keyframe_relative_pose_trials = 5;
+  double keyframe_max_rotation_spread_deg = 3.0;
   int keyframe_global_every = 5;  ///< a global adjustment after every this many registrations
   /// When no view is left to register: global adjustment, re-triangulation of every solved
   /// view's tracks, and every unregistered view tried again, at most this many times.
@@ -331,6 +338,8 @@ class Solver {
   bool registerFrame(int f, int min_inliers = 12, double min_inlier_ratio = 0.5);
   bool registerBestViews();
   bool registerByRelativePose(int f, int reference);
+  int placeFromRelativePose(int f, int reference, const PoseCw& rel, PoseCw& placed,
+                            int& seen) const;
   void initialCandidatesAll(const std::function<void(int, int)>& consider) const;
   // initialize()'s stages: the rotation test, the search for a two-view start, the tripod or
   // wide-window fallback, and the map seeded from the pair found.

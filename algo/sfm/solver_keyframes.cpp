@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "algo/geometry/determined_relative_pose.hpp"
 #include "algo/geometry/essential.hpp"
 #include "algo/geometry/essential_five_point.hpp"
 #include "algo/sfm/reprojection.hpp"
@@ -35,22 +36,40 @@ bool Solver::registerByRelativePose(int f, int reference) {
     n_f.push_back(normalized(*of));
   }
   if (static_cast<int>(n_ref.size()) < options_.keyframe_min_pair_inliers) return false;
-  EssentialRansac er(static_cast<int>(n_ref.size()));
   EssentialRansacOptions eo;
   eo.ransac.threshold = options_.reproj_threshold_px;
   eo.ransac.seed = options_.seed + 7919u * static_cast<uint64_t>(f);
   eo.focal_px = f_;
-  EssentialRansacResult e;
-  if (er.estimate(n_ref, n_f, eo, e) != EssentialRansac::Status::kOk ||
+  // The pose must be one the matches determine (algo/geometry/determined_relative_pose.hpp):
+  // a rotation that moves with the RANSAC seed is left for PnP.
+  RelativePoseHypothesis e;
+  if (!relativePoseOverSeeds(n_ref, n_f, eo, options_.keyframe_relative_pose_trials, e) ||
+      e.rotation_spread_deg > options_.keyframe_max_rotation_spread_deg ||
       e.inliers < options_.keyframe_min_pair_inliers ||
       2 * e.inliers < static_cast<int>(n_ref.size()))
     return false;
-  const std::vector<uint8_t> mask(e.mask.begin(), e.mask.end());
-  RelativePoseResult rp;
-  if (!recoverRelativePose(e.E, n_ref, n_f, mask, rp)) return false;
-  if (rp.second_best * 10 > rp.in_front * 7) return false;  // ambiguous cheirality
-  PoseCw rel = rp.pose;
-  refineRelativePose(n_ref, n_f, mask, f_, rel);
+  if (e.relative.second_best * 10 > e.relative.in_front * 7) return false;  // ambiguous cheirality
+  PoseCw rel = e.relative.pose;
+  refineRelativePose(n_ref, n_f, e.mask, f_, rel);
+  PoseCw pose;
+  int seen = 0;
+  const int n = placeFromRelativePose(f, reference, rel, pose, seen);
+  if (n < options_.keyframe_min_scale_points ||
+      n < options_.keyframe_min_inlier_ratio * static_cast<double>(seen))
+    return false;
+  auto& fr = frames_[static_cast<std::size_t>(f)];
+  fr.solved = true;
+  fr.pose = pose;
+  fr.inliers = n;
+  fr.rms_px = 0.0;
+  return true;
+}
+
+// Frame f placed from its relative pose `rel` to the solved `reference`: rotation and direction
+// of travel from `rel`, the distance from the map points f sees. The map points that agree, -1
+// when too few do; `seen`: the map points f sees.
+int Solver::placeFromRelativePose(int f, int reference, const PoseCw& rel, PoseCw& placed,
+                                  int& seen) const {
   // Pose of f: R = R_rel R_ref, t = R_rel t_ref + lambda t_rel; lambda from the map points f sees.
   const PoseCw& ref = frames_[static_cast<std::size_t>(reference)].pose;
   PoseCw pose;
@@ -73,7 +92,8 @@ bool Solver::registerByRelativePose(int f, int reference) {
     x.push_back(normalized(o));
     lambdas.push_back(-au.dot(bu) / den);
   }
-  if (static_cast<int>(X.size()) < options_.keyframe_min_scale_points) return false;
+  seen = static_cast<int>(X.size());
+  if (seen < options_.keyframe_min_scale_points) return -1;
   const double t_px = options_.reproj_threshold_px;
   const auto inliersFor = [&](const PoseCw& candidate, std::vector<uint8_t>* keep) {
     int n = 0;
@@ -98,7 +118,7 @@ bool Solver::registerByRelativePose(int f, int reference) {
       best_lambda = l;
     }
   }
-  if (best_n < options_.keyframe_min_scale_points) return false;
+  if (best_n < options_.keyframe_min_scale_points) return -1;
   pose.t_cw = t0 + best_lambda * b;
   // Least-squares lambda over the agreeing points (the rotation stays E's: it rests on many more
   // correspondences than the handful of points that fix the distance).
@@ -118,17 +138,8 @@ bool Solver::registerByRelativePose(int f, int reference) {
     c.t_cw = t0 + (num / den) * b;
     if (inliersFor(c, nullptr) >= best_n) pose = c;
   }
-  const PoseCw refined = pose;
-  const int n = inliersFor(refined, nullptr);
-  if (n < options_.keyframe_min_scale_points ||
-      n < options_.keyframe_min_inlier_ratio * static_cast<double>(X.size()))
-    return false;
-  auto& fr = frames_[static_cast<std::size_t>(f)];
-  fr.solved = true;
-  fr.pose = refined;
-  fr.inliers = n;
-  fr.rms_px = 0.0;
-  return true;
+  placed = pose;
+  return inliersFor(pose, nullptr);
 }
 
 bool Solver::registerBestViews() {

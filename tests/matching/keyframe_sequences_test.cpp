@@ -4,6 +4,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -45,10 +46,25 @@ SolveResult solveAndEvaluate(const TempDir& dir, const std::string& frames,
   return r;
 }
 
+// Sum of the "frames" of the ranges in summary.json's array `key` ("solved_ranges" or
+// "unsolved_ranges"); -1 when the array is absent.
+int framesInRanges(const std::string& summary, const std::string& key) {
+  const auto begin = summary.find("\"" + key + "\": [");
+  if (begin == std::string::npos) return -1;
+  const auto end = summary.find(']', begin);
+  int total = 0;
+  const std::string field = "\"frames\": ";
+  for (auto at = summary.find(field, begin); at != std::string::npos && at < end;
+       at = summary.find(field, at + 1))
+    total += std::atoi(summary.c_str() + at + field.size());
+  return total;
+}
+
 }  // namespace
 
-TEST_CASE("TUM fr3/cabinet key frames: descriptor tracks, at least 90 % of the frames solved",
-          "[matching][real][slow]") {
+TEST_CASE(
+    "TUM fr3/cabinet key frames: descriptor tracks, no frame registered wrong, the rest named",
+    "[matching][real][slow]") {
   const std::string name = "tum_fr3_cabinet_keyframes";
   if (!epitrack::test::haveSharedSequence(name)) return;
   const std::string seq = sharedDataDir() + "/" + name;
@@ -58,25 +74,30 @@ TEST_CASE("TUM fr3/cabinet key frames: descriptor tracks, at least 90 % of the f
       solveAndEvaluate(dir, seq + "/frames", seq + "/intrinsics.txt", seq + "/groundtruth.txt", "");
   INFO(r.summary.substr(0, 700));
   INFO(r.eval);
-  REQUIRE(r.exit_code == 0);
   CHECK(jsonString(r.summary, "matcher") == "descriptors");
   const double frames = jsonNumber(r.summary, "frames");
   const double solved = jsonNumber(r.summary, "solved_frames");
   std::printf(
-      "TUM cabinet key frames: %.0f/%.0f solved, ATE %.4f of the path, rotation %.2f deg "
+      "TUM cabinet key frames: %.0f/%.0f solved (%s), ATE %.4f of the path, rotation %.2f deg "
       "mean, %.2f deg max\n",
-      solved, frames, jsonNumber(r.eval, "ate_rmse_rel"), jsonNumber(r.eval, "rot_err_deg_mean"),
-      jsonNumber(r.eval, "rot_err_deg_max"));
+      solved, frames, jsonString(r.summary, "status").c_str(), jsonNumber(r.eval, "ate_rmse_rel"),
+      jsonNumber(r.eval, "rot_err_deg_mean"), jsonNumber(r.eval, "rot_err_deg_max"));
   CHECK(frames == 58);
-  CHECK(solved >= 0.9 * frames);
   CHECK(jsonNumber(r.eval, "matched_frames") == solved);
-  // Measured at the default seed: 58/58, ATE 0.0244, rotation 6.0 deg mean (2026-12-05, with
-  // the matcher's merge rule; 0.0348 / 8.8 deg before it). Over seeds 1-6 the ATE spreads over
-  // 0.018-0.042 either way and 51-58 frames solve: the last ten frames (a plain side of the
-  // cabinet, 20-40 map points each) break away by 14-28 deg; frames 0-49 alone score 0.0075 and
-  // 2.1 deg. The bounds hold the default seed's figures, not the spread.
-  CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.035);
-  CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 10.0);
+  // The status says what was solved: ok (exit 0) from 90 % of the frames, partial (exit 3)
+  // with the rest named below that.
+  const bool ok = solved >= 0.9 * frames;
+  CHECK(r.exit_code == (ok ? 0 : 3));
+  CHECK(jsonString(r.summary, "status") == (ok ? "ok" : "partial"));
+  CHECK(frames - solved == std::max(0, framesInRanges(r.summary, "unsolved_ranges")));
+  // Measured at the default seed (2026-12-06): 52/58, partial, ATE 0.0125, rotation 3.7 deg mean,
+  // 10.2 deg max. Before the relative pose had to be determined by its matches
+  // (SolverOptions::keyframe_max_rotation_spread_deg): 58/58 and ok, but frames 3-6 rotated by
+  // 14-42 deg (ATE 0.0244): registered from an E that its matches did not determine.
+  CHECK(solved >= 50);
+  CHECK(jsonNumber(r.eval, "rot_err_deg_max") < 15.0);
+  CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.02);
+  CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 5.0);
 }
 
 TEST_CASE("templeRing views 12-30: descriptor tracks, rotations better than LK",
@@ -114,24 +135,6 @@ TEST_CASE("templeRing views 12-30: descriptor tracks, rotations better than LK",
   CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.0025);
   CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 0.5);
 }
-
-namespace {
-
-// Sum of the "frames" of the ranges in summary.json's array `key` ("solved_ranges" or
-// "unsolved_ranges"); -1 when the array is absent.
-int framesInRanges(const std::string& summary, const std::string& key) {
-  const auto begin = summary.find("\"" + key + "\": [");
-  if (begin == std::string::npos) return -1;
-  const auto end = summary.find(']', begin);
-  int total = 0;
-  const std::string field = "\"frames\": ";
-  for (auto at = summary.find(field, begin); at != std::string::npos && at < end;
-       at = summary.find(field, at + 1))
-    total += std::atoi(summary.c_str() + at + field.size());
-  return total;
-}
-
-}  // namespace
 
 TEST_CASE("templeRing, all 47 views: ok only when 90 % register, else partial with views named",
           "[matching][real][slow]") {

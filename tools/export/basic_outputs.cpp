@@ -236,9 +236,9 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.key("rolling_shutter");
     j.beginObject();
     j.field("readout_ms", rec.readout_ms);
-    if (rec.readout_fps > 0.0) {
-      j.field("readout_frames", rec.readout_ms * rec.readout_fps / 1000.0);
-      j.field("fps", rec.readout_fps);
+    if (rec.fps > 0.0) {  // the rate readout_ms is at, as rolling_shutter.txt says
+      j.field("readout_frames", rec.readout_ms * rec.fps / 1000.0);
+      j.field("fps", rec.fps);
     }
     j.field("readout_source", rec.readout_source);
     j.field("readout_observable", rec.readout_observable);

@@ -159,9 +159,6 @@ struct Reconstruction {
   /// --readout auto: the model was kept (false: the estimate was not significantly above zero,
   /// and the global-shutter solve is written unchanged).
   bool readout_applied = true;
-  /// The frame rate readout_ms is converted at (the input's, 30 when it has none): the models
-  /// measure the readout in frame intervals, summary.json says both.
-  double readout_fps = 0.0;
   /// Whether the camera model explains the rows (algo/sfm/row_misfit.hpp, computed from the
   /// residuals by io::rowMisfitOf; summary.json "row_misfit" when frames_tested > 0).
   RowMisfit row_misfit;

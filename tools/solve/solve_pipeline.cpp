@@ -329,7 +329,6 @@ void recordTripodReadout(SolveRun& run, const SolverSummary& s, double fps) {
   const bool given = run.o.readout_ms > 0.0;
   const double readout_frames = given ? run.o.readout_ms * fps / 1000.0 : s.tripod_readout_frames;
   run.rec.readout_ms = readout_frames * 1000.0 / fps;
-  run.rec.readout_fps = fps;
   run.rec.readout_source = given ? "given" : "estimated";
   run.rec.readout_reference_row = 0.5 * (run.height - 1);
   run.rec.readout_rms_before_px = s.tripod_rms_before_px;
@@ -447,7 +446,6 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   run.rec.readout_rms_before_px = r.rms_before_px;
   run.rec.readout_rms_after_px = r.rms_after_px;
   run.rec.readout_ba_iterations = r.ba_iterations;
-  run.rec.readout_fps = fps;
   bool keep = true;
   if (given) {
     run.rec.readout_ms = run.o.readout_ms;

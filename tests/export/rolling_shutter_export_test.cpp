@@ -32,7 +32,7 @@ Reconstruction rollingShutterReconstruction() {
   rec.fps = 30.0;
   rec.readout_ms = 30.0;
   rec.readout_frames = 0.9;
-  rec.readout_source = "given";
+  rec.readout_source = ReadoutSource::kGiven;
   rec.readout_reference_row = 0.5 * (rec.intrinsics.height - 1);
   for (std::size_t i = 0; i < rec.cameras.size(); ++i) {
     const double s = 0.003 * static_cast<double>(i + 1);

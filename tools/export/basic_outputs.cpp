@@ -232,7 +232,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("focal_refined", true);
     j.field("focal_given_px", rec.focal_given_px);
   }
-  if (!rec.readout_source.empty()) {
+  if (rec.readout_source != ReadoutSource::kNone) {
     j.key("rolling_shutter");
     j.beginObject();
     j.field("readout_ms", rec.readout_ms);
@@ -240,9 +240,9 @@ std::string formatSummaryJson(const Reconstruction& rec,
       j.field("readout_frames", rec.readout_ms * rec.fps / 1000.0);
       j.field("fps", rec.fps);
     }
-    j.field("readout_source", rec.readout_source);
+    j.field("readout_source", readoutSourceName(rec.readout_source));
     j.field("readout_observable", rec.readout_observable);
-    if (rec.readout_source == "estimated") {
+    if (rec.readout_source == ReadoutSource::kEstimated) {
       j.field("readout_std_error_ms", rec.readout_std_error_ms);
       j.field("readout_applied", rec.readout_applied);
     }

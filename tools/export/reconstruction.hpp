@@ -25,6 +25,26 @@
 
 namespace epitrack::io {
 
+/// Where a solve's rolling-shutter readout came from (summary.json "readout_source").
+enum class ReadoutSource {
+  kNone,       ///< a global-shutter solve: no "rolling_shutter" block
+  kGiven,      ///< epitrack-solve --readout-ms
+  kEstimated,  ///< epitrack-solve --readout auto
+};
+
+/// The summary.json name of a readout source ("given", "estimated"; "" for kNone).
+inline const char* readoutSourceName(ReadoutSource source) {
+  switch (source) {
+    case ReadoutSource::kGiven:
+      return "given";
+    case ReadoutSource::kEstimated:
+      return "estimated";
+    case ReadoutSource::kNone:
+      break;
+  }
+  return "";
+}
+
 /// One frame of the clip. Unsolved frames may be listed (solved = false): they are omitted from
 /// every trajectory export but counted in the summary.
 struct SolvedCamera {
@@ -151,8 +171,7 @@ struct Reconstruction {
   double readout_rms_before_px = 0.0;
   double readout_rms_after_px = 0.0;
   int readout_ba_iterations = 0;  ///< the joint rolling-shutter adjustment's iterations
-  /// "given" (--readout-ms), "estimated" (--readout auto), "" (global shutter: no block).
-  std::string readout_source;
+  ReadoutSource readout_source = ReadoutSource::kNone;
   /// --readout auto: the estimate's standard error was small (at most 0.1 frame interval).
   bool readout_observable = true;
   double readout_std_error_ms = 0.0;  ///< --readout auto: that standard error

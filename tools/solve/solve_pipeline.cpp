@@ -321,6 +321,11 @@ const TrackTable& solverTracks(SolveRun& run) {
   return run.reference_row_tracks;
 }
 
+// An estimated readout is "observable" (summary.json readout_observable) when its standard error
+// is at most a tenth of a frame interval (3.3 ms at 30 fps), for the general and the tripod solve
+// alike.
+constexpr double kReadoutObservableFrames = 0.1;
+
 // A tripod solve with a readout given or estimated (--readout auto): its rotation-only adjustment
 // modelled each row's time on the tracks as exposed (Solver::refineTripod); the rolling_shutter
 // block reports that adjustment, and each frame's motion over the readout is the trajectory's
@@ -329,14 +334,14 @@ void recordTripodReadout(SolveRun& run, const SolverSummary& s, double fps) {
   const bool given = run.o.readout_ms > 0.0;
   const double readout_frames = given ? run.o.readout_ms * fps / 1000.0 : s.tripod_readout_frames;
   run.rec.readout_ms = readout_frames * 1000.0 / fps;
-  run.rec.readout_source = given ? "given" : "estimated";
+  run.rec.readout_source = given ? io::ReadoutSource::kGiven : io::ReadoutSource::kEstimated;
   run.rec.readout_reference_row = 0.5 * (run.height - 1);
   run.rec.readout_rms_before_px = s.tripod_rms_before_px;
   run.rec.readout_rms_after_px = s.tripod_rms_after_px;
   run.rec.readout_ba_iterations = s.tripod_iterations;
   if (!given) {
     run.rec.readout_std_error_ms = s.tripod_readout_std_error * 1000.0 / fps;
-    run.rec.readout_observable = s.tripod_readout_std_error <= 0.1;  // 3.3 ms at 30 fps
+    run.rec.readout_observable = s.tripod_readout_std_error <= kReadoutObservableFrames;
     run.rec.readout_applied = s.tripod_readout_applied;
     run.progress.message(
         "rolling shutter: readout estimated " + std::to_string(run.rec.readout_ms).substr(0, 5) +
@@ -449,7 +454,7 @@ void refineReadout(SolveRun& run, const Solver& solver) {
   bool keep = true;
   if (given) {
     run.rec.readout_ms = run.o.readout_ms;
-    run.rec.readout_source = "given";
+    run.rec.readout_source = io::ReadoutSource::kGiven;
   } else {
     // No adjustment (no points: a rotation-only solve, or too few observations): no estimate.
     ReadoutEstimate e;
@@ -458,9 +463,9 @@ void refineReadout(SolveRun& run, const Solver& solver) {
       e.std_error = r.line_delay_std_error * (run.height - 1);
     }
     e.observable = r.ba_iterations > 0 && std::isfinite(e.std_error) && e.std_error > 0.0 &&
-                   e.std_error <= 0.1;  // 3.3 ms at 30 fps
+                   e.std_error <= kReadoutObservableFrames;
     for (const auto& f : run.solved_frames) e.frames += f.solved ? 1 : 0;
-    run.rec.readout_source = "estimated";
+    run.rec.readout_source = io::ReadoutSource::kEstimated;
     run.rec.readout_ms = e.readout_frames * 1000.0 / fps;
     run.rec.readout_std_error_ms = e.std_error * 1000.0 / fps;
     run.rec.readout_observable = e.observable;
@@ -564,7 +569,9 @@ const char* fallbackNote(const std::string& fallback) {
 // An estimated readout that was applied but is poorly determined (--readout auto) is said even
 // under --quiet: the user may know the camera's readout better.
 void printUncertainReadout(const io::Reconstruction& rec) {
-  if (rec.readout_source != "estimated" || !rec.readout_applied || rec.readout_observable) return;
+  if (rec.readout_source != io::ReadoutSource::kEstimated || !rec.readout_applied ||
+      rec.readout_observable)
+    return;
   std::fprintf(stderr,
                "epitrack-solve: warning: the readout estimated, %.1f ms +- %.1f ms, is applied "
                "but poorly determined; give --readout-ms MS if the camera's readout is known\n",
@@ -576,7 +583,7 @@ void printUncertainReadout(const io::Reconstruction& rec) {
 void printRowMisfit(const io::Reconstruction& rec) {
   const RowMisfit& m = rec.row_misfit;
   if (!m.misfit) return;
-  const char* advice = rec.readout_source.empty() || !rec.readout_applied
+  const char* advice = rec.readout_source == io::ReadoutSource::kNone || !rec.readout_applied
                            ? "a rolling shutter? try --readout auto or --readout-ms MS"
                            : "the rolling-shutter model does not follow this motion (jitter "
                              "faster than the frame rate, or key frames far apart in time)";

@@ -43,6 +43,8 @@ const char* toString(SolverStatus s) {
       return "partial";
     case Solver::Status::kTrajectoryUncertain:
       return "trajectory-uncertain";
+    case Solver::Status::kInconsistent:
+      return "inconsistent";
   }
   return "unknown";
 }
@@ -180,6 +182,8 @@ SolverSummary Solver::summary() const {
   s.tripod_readout_std_error = tripod_readout_std_error_;
   s.tripod_readout_applied = tripod_readout_applied_;
   s.rotation_refused = rotation_refused_;
+  s.view_pairs_checked = view_pairs_checked_;
+  s.contradicted_pairs = contradicted_pairs_;
   return s;
 }
 
@@ -583,6 +587,7 @@ bool Solver::finalize() {
   computeErrors();
   assessCoverage();
   assessCentres();
+  if (options_.keyframe_collection) checkViewPairs();
   return solvedFrames() > 0;
 }
 

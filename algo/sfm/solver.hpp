@@ -82,6 +82,14 @@ struct SolverOptions {
   /// When no view is left to register: global adjustment, re-triangulation of every solved
   /// view's tracks, and every unregistered view tried again, at most this many times.
   int keyframe_retry_rounds = 2;
+  /// After a key-frame solve, every pair of solved views with at least this many E-RANSAC
+  /// inliers among their matches is checked against the solve (Solver::checkViewPairs): the
+  /// pair is contradicted when the solve's relative pose explains (Sampson distance within
+  /// reproj_threshold_px) fewer than keyframe_pair_min_support of the matches E explains. A
+  /// registration gone wrong shows there (TUM cabinet key frames, `--seed 2`: pairs at frames
+  /// 51-53, whose poses are 20-27 degrees off, explain 0.47-0.54; right ones 0.9-1.1). 0: off.
+  int keyframe_pair_check_min_inliers = 60;
+  double keyframe_pair_min_support = 0.6;
   /// A reconstruction that solves fewer than this fraction of the frames (views) is `kPartial`,
   /// never `kOk` (issues 20 and 22: a solve of 8 frames in 200 is not a result to call done).
   double min_solved_fraction = 0.9;
@@ -212,6 +220,11 @@ enum class SolverStatus {
   /// (SolverOptions::max_centre_sd_steps): the rotations and the focal stand, the path does
   /// not. The message gives the measured figure.
   kTrajectoryUncertain,
+  /// Key frames: the views registered (at least min_solved_fraction), but some pairs of them
+  /// are contradicted by their own matches (SolverSummary::contradicted_pairs,
+  /// Solver::checkViewPairs): the poses near those views are likely wrong. The message names
+  /// the worst pairs.
+  kInconsistent,
 };
 const char* toString(SolverStatus s);
 
@@ -231,6 +244,16 @@ const char* toString(FocalSource s);
 /// minimum: a guess), "field-of-view" (fallback_focal_widths).
 enum class FocalFallback { kNone, kProfile, kConverged, kProfileFlat, kFieldOfView };
 const char* toString(FocalFallback f);
+
+/// A pair of solved views whose matches a relative pose other than the solve's explains much
+/// better (Solver::checkViewPairs): at least one of the two poses (or the block of views each
+/// belongs to) is likely wrong, or the pair's matches are dominated by a coherent mismatch.
+struct ViewPairContradiction {
+  int a = -1, b = -1;     ///< the views (frame indices), a < b
+  int matches = 0;        ///< their common tracks
+  int best_inliers = 0;   ///< the matches E-RANSAC's best relative pose explains
+  int solve_inliers = 0;  ///< the matches the solve's relative pose explains
+};
 
 /// The solve's figures (Ceres-style Summary): status, intrinsics in use, where the focal came
 /// from, the motion class and the initial pair.
@@ -271,6 +294,10 @@ struct SolverSummary {
   double tripod_readout_frames = -1.0;
   double tripod_readout_std_error = 0.0;
   bool tripod_readout_applied = false;
+  /// Key frames (SolverOptions::keyframe_pair_check_min_inliers): the pairs of solved views
+  /// checked against their own matches, and those the matches contradict (worst first).
+  int view_pairs_checked = 0;
+  std::vector<ViewPairContradiction> contradicted_pairs;
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -387,6 +414,9 @@ class Solver {
   /// The centres' uncertainty relative to the path (SolverSummary::centre_sd_percent, _steps)
   /// and, when it exceeds max_centre_sd_steps, kOk turned into kTrajectoryUncertain with a message.
   void assessCentres();
+  /// Key frames: every solved pair with enough matches checked against the solve's relative
+  /// pose (SolverOptions::keyframe_pair_check_min_inliers); fills contradicted_pairs_.
+  void checkViewPairs();
   /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
   void sweepFocal();
   [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,
@@ -421,6 +451,8 @@ class Solver {
   double tripod_readout_std_error_ = 0.0;
   bool tripod_readout_applied_ = false;
   bool rotation_refused_ = false;  // SolverSummary::rotation_refused
+  int view_pairs_checked_ = 0;     // SolverSummary::view_pairs_checked
+  std::vector<ViewPairContradiction> contradicted_pairs_;
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)
   bool refine_fallback_focal_ = false;  // the profile found a clear minimum: polish it in BA

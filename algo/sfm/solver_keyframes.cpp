@@ -2,6 +2,8 @@
 #include "algo/sfm/solver.hpp"
 
 #include <algorithm>
+#include <cstdint>
+#include <cstdio>
 #include <vector>
 
 #include "algo/geometry/determined_relative_pose.hpp"
@@ -140,6 +142,80 @@ int Solver::placeFromRelativePose(int f, int reference, const PoseCw& rel, PoseC
   }
   placed = pose;
   return inliersFor(pose, nullptr);
+}
+
+// Every pair of solved views with enough matches, checked against its own images: the solve's
+// relative pose E_s = [t]x R must explain about as many of the pair's matches (Sampson distance
+// within the RANSAC threshold) as the best E the matches alone give. A registration gone wrong
+// (a PnP chain on a plain surface, a relative pose E-RANSAC settled wrongly) leaves the poses on
+// either side of it explaining half of their matches or less, while the reprojection errors of
+// the map points it kept look fine: the points that disagreed were never triangulated.
+void Solver::checkViewPairs() {
+  view_pairs_checked_ = 0;
+  contradicted_pairs_.clear();
+  const int min_inliers = options_.keyframe_pair_check_min_inliers;
+  if (min_inliers <= 0) return;
+  const int n = tracks_.frameCount();
+  std::vector<Eigen::Vector2d> n_a, n_b;
+  const double threshold = options_.reproj_threshold_px / f_;
+  for (int a = 0; a < n; ++a) {
+    if (!frames_[static_cast<std::size_t>(a)].solved) continue;
+    for (int b = a + 1; b < n; ++b) {
+      if (!frames_[static_cast<std::size_t>(b)].solved) continue;
+      n_a.clear();
+      n_b.clear();
+      for (const auto& o : tracks_.frame(a)) {
+        const TrackObservation* ob = tracks_.find(o.track, b);
+        if (ob == nullptr) continue;
+        n_a.push_back(normalized(o));
+        n_b.push_back(normalized(*ob));
+      }
+      if (static_cast<int>(n_a.size()) < min_inliers) continue;
+      EssentialRansacOptions eo;
+      eo.ransac.threshold = options_.reproj_threshold_px;
+      eo.ransac.seed = options_.seed + 7919u * static_cast<uint64_t>(a * n + b);
+      eo.focal_px = f_;
+      RelativePoseHypothesis best;
+      if (!relativePoseOverSeeds(n_a, n_b, eo, 1, best) || best.inliers < min_inliers) continue;
+      // The solve's relative pose a -> b: x_b = R x_a + t.
+      const PoseCw& pa = frames_[static_cast<std::size_t>(a)].pose;
+      const PoseCw& pb = frames_[static_cast<std::size_t>(b)].pose;
+      const Eigen::Matrix3d R = pb.R_cw * pa.R_cw.transpose();
+      const Eigen::Vector3d t = pb.t_cw - R * pa.t_cw;
+      if (!(t.norm() > 0.0)) continue;  // no baseline: E is undefined
+      const Eigen::Matrix3d E = skewSymmetric(t.normalized()) * R;
+      int explained = 0;
+      for (std::size_t i = 0; i < n_a.size(); ++i)
+        explained += essentialSampsonSquared(E, n_a[i], n_b[i]) <= threshold * threshold ? 1 : 0;
+      ++view_pairs_checked_;
+      if (explained >= options_.keyframe_pair_min_support * best.inliers) continue;
+      ViewPairContradiction c;
+      c.a = a;
+      c.b = b;
+      c.matches = static_cast<int>(n_a.size());
+      c.best_inliers = best.inliers;
+      c.solve_inliers = explained;
+      contradicted_pairs_.push_back(c);
+    }
+  }
+  // Worst first: the smallest share of the best pose's inliers.
+  std::stable_sort(contradicted_pairs_.begin(), contradicted_pairs_.end(),
+                   [](const ViewPairContradiction& x, const ViewPairContradiction& y) {
+                     return static_cast<int64_t>(x.solve_inliers) * y.best_inliers <
+                            static_cast<int64_t>(y.solve_inliers) * x.best_inliers;
+                   });
+  if (status_ != Status::kOk || contradicted_pairs_.empty()) return;  // partial etc. stand
+  const ViewPairContradiction& worst = contradicted_pairs_.front();
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "%zu of %d pairs of registered views are contradicted by their own matches "
+                "(worst: views %d-%d, whose relative pose in the solve explains %d of the %d "
+                "matches the pair's own relative pose explains): the poses near them are likely "
+                "wrong; summary.json view_pair_check names every pair",
+                contradicted_pairs_.size(), view_pairs_checked_, worst.a, worst.b,
+                worst.solve_inliers, worst.best_inliers);
+  status_ = Status::kInconsistent;
+  message_ = text;
 }
 
 bool Solver::registerBestViews() {

@@ -209,6 +209,14 @@ TEST_CASE("Key-frame solve of the rendered orbit from descriptor tracks",
       s.solvedFrames(), kKeyframes, m.ate_rmse_rel, m.rot_err_deg_mean, mean);
   CHECK(m.ate_rmse_rel < 1e-3);
   CHECK(m.rot_err_deg_mean < 0.2);
+  // The view-pair check (Solver::checkViewPairs) on a right solve: every pair's own matches
+  // agree with it, so the status stays ok.
+  const epitrack::SolverSummary summary = s.summary();
+  std::printf("keyframe orbit solve: %d view pairs checked, %zu contradicted\n",
+              summary.view_pairs_checked, summary.contradicted_pairs.size());
+  CHECK(summary.view_pairs_checked >= kKeyframes);
+  CHECK(summary.contradicted_pairs.empty());
+  CHECK(s.status() == epitrack::Solver::Status::kOk);
 }
 
 TEST_CASE("View graph: the rendered key frames in shuffled order, every pair matched, all register",

@@ -63,41 +63,59 @@ int framesInRanges(const std::string& summary, const std::string& key) {
 }  // namespace
 
 TEST_CASE(
-    "TUM fr3/cabinet key frames: descriptor tracks, no frame registered wrong, the rest named",
+    "TUM fr3/cabinet key frames: descriptor tracks, no view far off called ok, the rest named",
     "[matching][real][slow]") {
   const std::string name = "tum_fr3_cabinet_keyframes";
   if (!epitrack::test::haveSharedSequence(name)) return;
   const std::string seq = sharedDataDir() + "/" + name;
-  TempDir dir("tum-kf");
-  // Default options: auto must pick the descriptor matcher for these key frames.
-  const SolveResult r =
-      solveAndEvaluate(dir, seq + "/frames", seq + "/intrinsics.txt", seq + "/groundtruth.txt", "");
-  INFO(r.summary.substr(0, 700));
-  INFO(r.eval);
-  CHECK(jsonString(r.summary, "matcher") == "descriptors");
-  const double frames = jsonNumber(r.summary, "frames");
-  const double solved = jsonNumber(r.summary, "solved_frames");
-  std::printf(
-      "TUM cabinet key frames: %.0f/%.0f solved (%s), ATE %.4f of the path, rotation %.2f deg "
-      "mean, %.2f deg max\n",
-      solved, frames, jsonString(r.summary, "status").c_str(), jsonNumber(r.eval, "ate_rmse_rel"),
-      jsonNumber(r.eval, "rot_err_deg_mean"), jsonNumber(r.eval, "rot_err_deg_max"));
-  CHECK(frames == 58);
-  CHECK(jsonNumber(r.eval, "matched_frames") == solved);
-  // The status says what was solved: ok (exit 0) from 90 % of the frames, partial (exit 3)
-  // with the rest named below that.
-  const bool ok = solved >= 0.9 * frames;
-  CHECK(r.exit_code == (ok ? 0 : 3));
-  CHECK(jsonString(r.summary, "status") == (ok ? "ok" : "partial"));
-  CHECK(frames - solved == std::max(0, framesInRanges(r.summary, "unsolved_ranges")));
-  // Measured at the default seed (2026-12-06): 52/58, partial, ATE 0.0125, rotation 3.7 deg mean,
-  // 10.2 deg max. Before the relative pose had to be determined by its matches
-  // (SolverOptions::keyframe_max_rotation_spread_deg): 58/58 and ok, but frames 3-6 rotated by
-  // 14-42 deg (ATE 0.0244): registered from an E that its matches did not determine.
-  CHECK(solved >= 50);
-  CHECK(jsonNumber(r.eval, "rot_err_deg_max") < 15.0);
-  CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.02);
-  CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 5.0);
+  // The default seed and seed 2, whose solve registered 55 of 58 views under "ok" with views
+  // 51-57 and 3-4 16-27 degrees off (PnP chains on the cabinet's plain side; measured
+  // 2026-12-06).
+  for (const int seed : {1, 2}) {
+    TempDir dir("tum-kf-" + std::to_string(seed));
+    // Default options: auto must pick the descriptor matcher for these key frames.
+    const SolveResult r =
+        solveAndEvaluate(dir, seq + "/frames", seq + "/intrinsics.txt", seq + "/groundtruth.txt",
+                         seed == 1 ? "" : "--seed " + std::to_string(seed));
+    INFO("seed " << seed << ": " << r.summary.substr(0, 700));
+    INFO(r.eval);
+    CHECK(jsonString(r.summary, "matcher") == "descriptors");
+    const double frames = jsonNumber(r.summary, "frames");
+    const double solved = jsonNumber(r.summary, "solved_frames");
+    const std::string status = jsonString(r.summary, "status");
+    const double rot_max = jsonNumber(r.eval, "rot_err_deg_max");
+    std::printf(
+        "TUM cabinet key frames, seed %d: %.0f/%.0f solved (%s, exit %d), ATE %.4f of the path, "
+        "rotation %.2f deg mean, %.2f deg max; %.0f view pairs checked\n",
+        seed, solved, frames, status.c_str(), r.exit_code, jsonNumber(r.eval, "ate_rmse_rel"),
+        jsonNumber(r.eval, "rot_err_deg_mean"), rot_max, jsonNumber(r.summary, "pairs_checked"));
+    CHECK(frames == 58);
+    CHECK(jsonNumber(r.eval, "matched_frames") == solved);
+    CHECK(frames - solved == std::max(0, framesInRanges(r.summary, "unsolved_ranges")));
+    CHECK(jsonNumber(r.summary, "pairs_checked") >= 50);
+    // The status says what was solved: partial (exit 3) below 90 % of the views, with the rest
+    // named; above it ok (exit 0), or inconsistent (exit 5) when pairs of registered views
+    // contradict the solve (Solver::checkViewPairs).
+    if (solved < 0.9 * frames) {
+      CHECK(status == "partial");
+      CHECK(r.exit_code == 3);
+    } else {
+      CHECK((status == "ok" || status == "inconsistent"));
+      CHECK(r.exit_code == (status == "ok" ? 0 : 5));
+    }
+    // Never a silent wrong answer: a view more than 15 degrees off is never under "ok".
+    CHECK((rot_max <= 15.0 || status != "ok"));
+    if (seed == 1) {
+      // Measured 2026-12-06: 52/58, partial, ATE 0.0125, rotation 3.7 deg mean, 10.2 deg max.
+      // Before the relative pose had to be determined by its matches
+      // (SolverOptions::keyframe_max_rotation_spread_deg): 58/58 and ok, but frames 3-6 rotated
+      // by 14-42 deg (ATE 0.0244): registered from an E that its matches did not determine.
+      CHECK(solved >= 50);
+      CHECK(rot_max < 15.0);
+      CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.02);
+      CHECK(jsonNumber(r.eval, "rot_err_deg_mean") < 5.0);
+    }
+  }
 }
 
 TEST_CASE("templeRing views 12-30: descriptor tracks, rotations better than LK",
@@ -183,6 +201,9 @@ TEST_CASE("templeRing, all 47 views: ok only when 90 % register, else partial wi
       CHECK(solved == frames);
       CHECK(jsonNumber(r.eval, "ate_rmse_rel") < 0.001);
     }
+    // The view-pair check finds nothing against this right solve (measured 2026-12-06: 428
+    // pairs checked, none contradicted), so the status can be ok.
+    CHECK(jsonNumber(r.summary, "pairs_checked") >= 100);
     if (solved >= 0.9 * frames) {
       CHECK(jsonString(r.summary, "status") == "ok");
       CHECK(r.exit_code == 0);

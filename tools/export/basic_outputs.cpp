@@ -273,6 +273,24 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("sd_percent_of_path", rec.centre_sd_percent);
     j.endObject();
   }
+  if (rec.view_pairs_checked >= 0) {
+    j.key("view_pair_check");
+    j.beginObject();
+    j.field("pairs_checked", rec.view_pairs_checked);
+    j.key("contradicted");
+    j.beginArray();
+    for (const ContradictedViewPair& c : rec.contradicted_view_pairs) {
+      j.beginObject();
+      j.field("a", c.a);
+      j.field("b", c.b);
+      j.field("matches", c.matches);
+      j.field("best_inliers", c.best_inliers);
+      j.field("solve_inliers", c.solve_inliers);
+      j.endObject();
+    }
+    j.endArray();
+    j.endObject();
+  }
   if (rec.tripod_iterations >= 0) {
     j.key("tripod_adjustment");
     j.beginObject();

@@ -45,6 +45,16 @@ inline const char* readoutSourceName(ReadoutSource source) {
   return "";
 }
 
+/// A pair of solved views whose own matches contradict the solve (Solver::checkViewPairs):
+/// E-RANSAC on their matches explains best_inliers of them, the solve's relative pose only
+/// solve_inliers.
+struct ContradictedViewPair {
+  int64_t a = 0, b = 0;  ///< frame indices, a < b
+  int matches = 0;
+  int best_inliers = 0;
+  int solve_inliers = 0;
+};
+
 /// One frame of the clip. Unsolved frames may be listed (solved = false): they are omitted from
 /// every trajectory export but counted in the summary.
 struct SolvedCamera {
@@ -195,6 +205,10 @@ struct Reconstruction {
   double centre_sd_percent = -1.0;
   double centre_sd_steps = -1.0;
   double centre_sd_limit_steps = 0.0;
+  /// Key frames: the pairs of solved views checked against their own matches (summary.json
+  /// "view_pair_check"; negative: not checked, a video solve) and those contradicted, worst first.
+  int view_pairs_checked = -1;
+  std::vector<ContradictedViewPair> contradicted_view_pairs;
   /// A tripod solve's rotation-only adjustment (summary.json "tripod_adjustment"; iterations < 0:
   /// not run): RMS reprojection error before and after, iterations, and whether it modelled each
   /// row's time (a rolling shutter with --readout-ms).

@@ -203,6 +203,18 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
                  fmt(2, rec.centre_sd_limit_steps) + "), " + fmt(3, rec.centre_sd_percent) +
                  " % of the path");
   }
+  if (rec.view_pairs_checked >= 0) {
+    // Key frames (summary.json view_pair_check): pairs contradicted by their own matches make
+    // the status inconsistent (or are warned of in a partial solve).
+    std::string pairs = std::to_string(rec.contradicted_view_pairs.size()) + " of " +
+                        std::to_string(rec.view_pairs_checked) + " contradicted";
+    for (std::size_t i = 0; i < rec.contradicted_view_pairs.size() && i < 5; ++i) {
+      const io::ContradictedViewPair& c = rec.contradicted_view_pairs[i];
+      pairs += (i == 0 ? ": " : ", ") + std::to_string(c.a) + "-" + std::to_string(c.b) + " (" +
+               std::to_string(c.solve_inliers) + " of " + std::to_string(c.best_inliers) + ")";
+    }
+    h += row("view_pair_check", "view pairs", pairs);
+  }
   char buf[160];
   std::snprintf(buf, sizeof(buf), "%d x %d, cx %.2f, cy %.2f, k1 %.5g, k2 %.5g", k.width, k.height,
                 k.cx, k.cy, k.k1, k.k2);

@@ -48,7 +48,9 @@ int main(int argc, char** argv) {
       "Exit: 0 solved (at least 90 % of the frames; or a tripod solve), 1 the solve failed\n"
       "(summary.json says why), 2 bad command line or unusable INPUT/--intrinsics/--mask/--out,\n"
       "3 partial: outputs written but fewer than 90 % of the frames solved (summary.json's\n"
-      "unsolved_ranges say which and why), 130 (143) stopped by SIGINT (SIGTERM).");
+      "unsolved_ranges say which and why), 4 trajectory-uncertain (the camera centres not\n"
+      "determined), 5 inconsistent (key frames whose own view pairs contradict the solve:\n"
+      "summary.json view_pair_check), 130 (143) stopped by SIGINT (SIGTERM).");
   cl.positional("INPUT", "frames to solve", &o.input);
   cl.text("out", "DIR", "output directory (created)", &o.out_dir);
   cl.require("out");

@@ -224,6 +224,11 @@ void describeSolve(SolveRun& run, const Solver& solver) {
   rec.centre_sd_percent = summary.centre_sd_percent;
   rec.centre_sd_steps = summary.centre_sd_steps;
   rec.centre_sd_limit_steps = so.max_centre_sd_steps;
+  if (so.keyframe_collection && so.keyframe_pair_check_min_inliers > 0) {
+    rec.view_pairs_checked = summary.view_pairs_checked;
+    for (const ViewPairContradiction& c : summary.contradicted_pairs)
+      rec.contradicted_view_pairs.push_back({c.a, c.b, c.matches, c.best_inliers, c.solve_inliers});
+  }
   rec.tripod_rms_before_px = summary.tripod_rms_before_px;
   rec.tripod_rms_after_px = summary.tripod_rms_after_px;
   rec.tripod_iterations = summary.tripod_iterations;
@@ -509,7 +514,8 @@ void buildReconstruction(SolveRun& run, const Solver& solver) {
   auto& rec = run.rec;
   if (solver.status() == Solver::Status::kOk || solver.status() == Solver::Status::kRotationOnly ||
       solver.status() == Solver::Status::kPartial ||
-      solver.status() == Solver::Status::kTrajectoryUncertain) {
+      solver.status() == Solver::Status::kTrajectoryUncertain ||
+      solver.status() == Solver::Status::kInconsistent) {
     const auto sf = io::applySceneFrame(rec, run.o.scene);
     (void)sf;
   }
@@ -578,6 +584,29 @@ void printUncertainReadout(const io::Reconstruction& rec) {
                rec.readout_ms, rec.readout_std_error_ms);
 }
 
+// Key-frame view pairs whose own matches contradict the solve are said even under --quiet when
+// the status does not already say so (a partial solve): the poses near them are likely wrong
+// although their reprojection errors look fine.
+void printContradictedPairs(const io::Reconstruction& rec) {
+  const auto& pairs = rec.contradicted_view_pairs;
+  if (pairs.empty() || rec.status == "inconsistent") return;  // the status line names them
+  std::string named;
+  for (std::size_t i = 0; i < pairs.size() && i < 5; ++i) {
+    char one[96];
+    std::snprintf(one, sizeof(one), "%s%lld-%lld (%d of %d)", i > 0 ? ", " : "",
+                  static_cast<long long>(pairs[i].a), static_cast<long long>(pairs[i].b),
+                  pairs[i].solve_inliers, pairs[i].best_inliers);
+    named += one;
+  }
+  if (pairs.size() > 5) named += ", ...";
+  std::fprintf(stderr,
+               "epitrack-solve: warning: %zu of %d view pairs are contradicted by their own "
+               "matches (the solve's relative pose explains far fewer of them than the pose the "
+               "matches give: %s): the poses near them may be wrong although their reprojection "
+               "errors look fine; summary.json view_pair_check\n",
+               pairs.size(), rec.view_pairs_checked, named.c_str());
+}
+
 // A camera model that leaves the rows unexplained (algo/sfm/row_misfit.hpp) is said even under
 // --quiet: the poses are written, but an inserted object will slide against the plate.
 void printRowMisfit(const io::Reconstruction& rec) {
@@ -625,6 +654,7 @@ void printResult(const SolveRun& run, const Solver& solver) {
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   printUncertainReadout(rec);
   printRowMisfit(rec);
+  printContradictedPairs(rec);
 }
 
 // The exit code (solve_pipeline.hpp, runSolve), with the reason on stderr.
@@ -653,6 +683,12 @@ int exitCode(const SolveRun& run, const Solver& solver) {
     // is in the message and in summary.json centre_uncertainty).
     std::fprintf(stderr, "epitrack-solve: trajectory-uncertain: %s\n", summary.message.c_str());
     return kExitTrajectoryUncertain;
+  }
+  if (solver.status() == Solver::Status::kInconsistent) {
+    // Outputs written, the views registered, but pairs of them contradict the solve (named in
+    // the message and in summary.json view_pair_check).
+    std::fprintf(stderr, "epitrack-solve: inconsistent: %s\n", summary.message.c_str());
+    return kExitInconsistent;
   }
   if (!ok) {
     std::fprintf(stderr, "epitrack-solve: %s\n", summary.message.c_str());

@@ -66,12 +66,16 @@ inline constexpr int kExitPartial = 3;
 /// "trajectory-uncertain"): every output written, rotations and focal solved, the centres'
 /// standard deviation beyond the limit (summary.json centre_uncertainty).
 inline constexpr int kExitTrajectoryUncertain = 4;
+/// Exit code of a key-frame solve whose view pairs contradict it (status "inconsistent"):
+/// every output written, the pairs named in summary.json view_pair_check.
+inline constexpr int kExitInconsistent = 5;
 
 /// Runs the whole solve and writes every output. Returns the process exit code: 0 solved (at
 /// least 90 % of the frames; or a tripod solve of as many), 1 a runtime failure (summary.json
 /// says why whenever the clip could be read), 2 an unusable INPUT, --intrinsics, --mask or --out
 /// (one line on stderr, nothing written), 3 (kExitPartial) a partial solve, 4
-/// (kExitTrajectoryUncertain) every frame solved but the camera path uncertain, or
+/// (kExitTrajectoryUncertain) every frame solved but the camera path uncertain, 5
+/// (kExitInconsistent) key frames registered but pairs of them contradicted by their matches, or
 /// 128 + the signal (130 SIGINT, 143 SIGTERM) when a stop signal ended it early: then
 /// summary.json has status "interrupted" and lists the consistent outputs written (see
 /// tools/common/interrupt.hpp; the caller installs the handler).

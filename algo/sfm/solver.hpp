@@ -11,6 +11,7 @@
 #include "algo/geometry/pose.hpp"
 #include "algo/sfm/rotation_adjustment.hpp"
 #include "algo/sfm/track_table.hpp"
+#include "algo/sfm/view_pair_contradiction.hpp"
 
 namespace epitrack {
 
@@ -245,16 +246,6 @@ const char* toString(FocalSource s);
 enum class FocalFallback { kNone, kProfile, kConverged, kProfileFlat, kFieldOfView };
 const char* toString(FocalFallback f);
 
-/// A pair of solved views whose matches a relative pose other than the solve's explains much
-/// better (Solver::checkViewPairs): at least one of the two poses (or the block of views each
-/// belongs to) is likely wrong, or the pair's matches are dominated by a coherent mismatch.
-struct ViewPairContradiction {
-  int a = -1, b = -1;     ///< the views (frame indices), a < b
-  int matches = 0;        ///< their common tracks
-  int best_inliers = 0;   ///< the matches E-RANSAC's best relative pose explains
-  int solve_inliers = 0;  ///< the matches the solve's relative pose explains
-};
-
 /// The solve's figures (Ceres-style Summary): status, intrinsics in use, where the focal came
 /// from, the motion class and the initial pair.
 struct SolverSummary {
@@ -295,8 +286,9 @@ struct SolverSummary {
   double tripod_readout_std_error = 0.0;
   bool tripod_readout_applied = false;
   /// Key frames (SolverOptions::keyframe_pair_check_min_inliers): the pairs of solved views
-  /// checked against their own matches, and those the matches contradict (worst first).
-  int view_pairs_checked = 0;
+  /// checked against their own matches (-1: not checked, a video solve or the check off), and
+  /// those the matches contradict (worst first).
+  int view_pairs_checked = -1;
   std::vector<ViewPairContradiction> contradicted_pairs;
 };
 
@@ -417,6 +409,10 @@ class Solver {
   /// Key frames: every solved pair with enough matches checked against the solve's relative
   /// pose (SolverOptions::keyframe_pair_check_min_inliers); fills contradicted_pairs_.
   void checkViewPairs();
+  /// The normalized coordinates of the tracks frames a and b share (n_a[i] and n_b[i] one
+  /// track), in frame a's order.
+  void normalizedMatches(int a, int b, std::vector<Eigen::Vector2d>& n_a,
+                         std::vector<Eigen::Vector2d>& n_b) const;
   /// Fills profile_ and sets f_ to the profile's minimum (SolverOptions::focal_sweep).
   void sweepFocal();
   [[nodiscard]] FocalProfilePoint probeFocal(const TrackTable& tracks, double focal,
@@ -451,7 +447,7 @@ class Solver {
   double tripod_readout_std_error_ = 0.0;
   bool tripod_readout_applied_ = false;
   bool rotation_refused_ = false;  // SolverSummary::rotation_refused
-  int view_pairs_checked_ = 0;     // SolverSummary::view_pairs_checked
+  int view_pairs_checked_ = -1;    // SolverSummary::view_pairs_checked
   std::vector<ViewPairContradiction> contradicted_pairs_;
   bool sweep_pending_ = false;
   std::vector<int> final_cameras_;  // extra cameras of the final adjustments (final_extra_frames)

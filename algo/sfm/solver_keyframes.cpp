@@ -31,12 +31,7 @@ void Solver::initialCandidatesAll(const std::function<void(int, int)>& consider)
 bool Solver::registerByRelativePose(int f, int reference) {
   // Correspondences between the solved reference and f.
   std::vector<Eigen::Vector2d> n_ref, n_f;
-  for (const auto& o : tracks_.frame(reference)) {
-    const TrackObservation* of = tracks_.find(o.track, f);
-    if (of == nullptr) continue;
-    n_ref.push_back(normalized(o));
-    n_f.push_back(normalized(*of));
-  }
+  normalizedMatches(reference, f, n_ref, n_f);
   if (static_cast<int>(n_ref.size()) < options_.keyframe_min_pair_inliers) return false;
   EssentialRansacOptions eo;
   eo.ransac.threshold = options_.reproj_threshold_px;
@@ -150,11 +145,24 @@ int Solver::placeFromRelativePose(int f, int reference, const PoseCw& rel, PoseC
 // (a PnP chain on a plain surface, a relative pose E-RANSAC settled wrongly) leaves the poses on
 // either side of it explaining half of their matches or less, while the reprojection errors of
 // the map points it kept look fine: the points that disagreed were never triangulated.
+void Solver::normalizedMatches(int a, int b, std::vector<Eigen::Vector2d>& n_a,
+                               std::vector<Eigen::Vector2d>& n_b) const {
+  n_a.clear();
+  n_b.clear();
+  for (const auto& o : tracks_.frame(a)) {
+    const TrackObservation* ob = tracks_.find(o.track, b);
+    if (ob == nullptr) continue;
+    n_a.push_back(normalized(o));
+    n_b.push_back(normalized(*ob));
+  }
+}
+
 void Solver::checkViewPairs() {
-  view_pairs_checked_ = 0;
+  view_pairs_checked_ = -1;
   contradicted_pairs_.clear();
   const int min_inliers = options_.keyframe_pair_check_min_inliers;
   if (min_inliers <= 0) return;
+  view_pairs_checked_ = 0;
   const int n = tracks_.frameCount();
   std::vector<Eigen::Vector2d> n_a, n_b;
   const double threshold = options_.reproj_threshold_px / f_;
@@ -162,14 +170,7 @@ void Solver::checkViewPairs() {
     if (!frames_[static_cast<std::size_t>(a)].solved) continue;
     for (int b = a + 1; b < n; ++b) {
       if (!frames_[static_cast<std::size_t>(b)].solved) continue;
-      n_a.clear();
-      n_b.clear();
-      for (const auto& o : tracks_.frame(a)) {
-        const TrackObservation* ob = tracks_.find(o.track, b);
-        if (ob == nullptr) continue;
-        n_a.push_back(normalized(o));
-        n_b.push_back(normalized(*ob));
-      }
+      normalizedMatches(a, b, n_a, n_b);
       if (static_cast<int>(n_a.size()) < min_inliers) continue;
       EssentialRansacOptions eo;
       eo.ransac.threshold = options_.reproj_threshold_px;

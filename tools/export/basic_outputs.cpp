@@ -279,7 +279,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("pairs_checked", rec.view_pairs_checked);
     j.key("contradicted");
     j.beginArray();
-    for (const ContradictedViewPair& c : rec.contradicted_view_pairs) {
+    for (const ViewPairContradiction& c : rec.contradicted_view_pairs) {
       j.beginObject();
       j.field("a", c.a);
       j.field("b", c.b);

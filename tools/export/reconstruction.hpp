@@ -22,6 +22,7 @@
 
 #include "algo/geometry/camera_intrinsics.hpp"
 #include "algo/sfm/row_misfit.hpp"
+#include "algo/sfm/view_pair_contradiction.hpp"
 
 namespace epitrack::io {
 
@@ -45,15 +46,18 @@ inline const char* readoutSourceName(ReadoutSource source) {
   return "";
 }
 
-/// A pair of solved views whose own matches contradict the solve (Solver::checkViewPairs):
-/// E-RANSAC on their matches explains best_inliers of them, the solve's relative pose only
-/// solve_inliers.
-struct ContradictedViewPair {
-  int64_t a = 0, b = 0;  ///< frame indices, a < b
-  int matches = 0;
-  int best_inliers = 0;
-  int solve_inliers = 0;
-};
+/// The first `most` contradicted view pairs as "a-b (solve_inliers of best_inliers), ...": the
+/// stderr warning and the report name them alike.
+inline std::string contradictedPairsText(const std::vector<ViewPairContradiction>& pairs,
+                                         std::size_t most) {
+  std::string text;
+  for (std::size_t i = 0; i < pairs.size() && i < most; ++i) {
+    const ViewPairContradiction& c = pairs[i];
+    text += (i == 0 ? "" : ", ") + std::to_string(c.a) + "-" + std::to_string(c.b) + " (" +
+            std::to_string(c.solve_inliers) + " of " + std::to_string(c.best_inliers) + ")";
+  }
+  return text;
+}
 
 /// One frame of the clip. Unsolved frames may be listed (solved = false): they are omitted from
 /// every trajectory export but counted in the summary.
@@ -208,7 +212,7 @@ struct Reconstruction {
   /// Key frames: the pairs of solved views checked against their own matches (summary.json
   /// "view_pair_check"; negative: not checked, a video solve) and those contradicted, worst first.
   int view_pairs_checked = -1;
-  std::vector<ContradictedViewPair> contradicted_view_pairs;
+  std::vector<ViewPairContradiction> contradicted_view_pairs;
   /// A tripod solve's rotation-only adjustment (summary.json "tripod_adjustment"; iterations < 0:
   /// not run): RMS reprojection error before and after, iterations, and whether it modelled each
   /// row's time (a rolling shutter with --readout-ms).

@@ -208,11 +208,8 @@ std::string summarySection(const io::Reconstruction& rec, const Summary& s) {
     // the status inconsistent (or are warned of in a partial solve).
     std::string pairs = std::to_string(rec.contradicted_view_pairs.size()) + " of " +
                         std::to_string(rec.view_pairs_checked) + " contradicted";
-    for (std::size_t i = 0; i < rec.contradicted_view_pairs.size() && i < 5; ++i) {
-      const io::ContradictedViewPair& c = rec.contradicted_view_pairs[i];
-      pairs += (i == 0 ? ": " : ", ") + std::to_string(c.a) + "-" + std::to_string(c.b) + " (" +
-               std::to_string(c.solve_inliers) + " of " + std::to_string(c.best_inliers) + ")";
-    }
+    if (!rec.contradicted_view_pairs.empty())
+      pairs += ": " + io::contradictedPairsText(rec.contradicted_view_pairs, 5);
     h += row("view_pair_check", "view pairs", pairs);
   }
   char buf[160];

@@ -224,11 +224,8 @@ void describeSolve(SolveRun& run, const Solver& solver) {
   rec.centre_sd_percent = summary.centre_sd_percent;
   rec.centre_sd_steps = summary.centre_sd_steps;
   rec.centre_sd_limit_steps = so.max_centre_sd_steps;
-  if (so.keyframe_collection && so.keyframe_pair_check_min_inliers > 0) {
-    rec.view_pairs_checked = summary.view_pairs_checked;
-    for (const ViewPairContradiction& c : summary.contradicted_pairs)
-      rec.contradicted_view_pairs.push_back({c.a, c.b, c.matches, c.best_inliers, c.solve_inliers});
-  }
+  rec.view_pairs_checked = summary.view_pairs_checked;
+  rec.contradicted_view_pairs = summary.contradicted_pairs;
   rec.tripod_rms_before_px = summary.tripod_rms_before_px;
   rec.tripod_rms_after_px = summary.tripod_rms_after_px;
   rec.tripod_iterations = summary.tripod_iterations;
@@ -590,14 +587,7 @@ void printUncertainReadout(const io::Reconstruction& rec) {
 void printContradictedPairs(const io::Reconstruction& rec) {
   const auto& pairs = rec.contradicted_view_pairs;
   if (pairs.empty() || rec.status == "inconsistent") return;  // the status line names them
-  std::string named;
-  for (std::size_t i = 0; i < pairs.size() && i < 5; ++i) {
-    char one[96];
-    std::snprintf(one, sizeof(one), "%s%lld-%lld (%d of %d)", i > 0 ? ", " : "",
-                  static_cast<long long>(pairs[i].a), static_cast<long long>(pairs[i].b),
-                  pairs[i].solve_inliers, pairs[i].best_inliers);
-    named += one;
-  }
+  std::string named = io::contradictedPairsText(pairs, 5);
   if (pairs.size() > 5) named += ", ...";
   std::fprintf(stderr,
                "epitrack-solve: warning: %zu of %d view pairs are contradicted by their own "

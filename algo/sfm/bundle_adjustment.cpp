@@ -11,35 +11,48 @@
 namespace epitrack {
 namespace {
 
-// exp([w]x) by Rodrigues' formula, with the series near zero.
-Eigen::Matrix3d rodrigues(const Eigen::Vector3d& w) {
-  const double theta2 = w.squaredNorm();
-  const Eigen::Matrix3d W = skewSymmetric(w);
-  if (theta2 < 1e-16) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
+// sin(theta) / theta and (1 - cos(theta)) / theta^2 of theta^2. Below theta^2 = 1e-4 (a
+// readout's rotation, a late LM step) their series to theta^4: the next terms, theta^6 / 5040
+// and / 40320, are under 2e-16, while the closed form of the second loses 1e-12 relative to the
+// cancellation in 1 - cos(theta); and no sin/cos.
+struct RodriguesCoefficients {
+  double s = 1.0;
+  double c = 0.5;
+};
+RodriguesCoefficients rodriguesCoefficients(double theta2) {
+  if (theta2 < 1e-4)
+    return {1.0 - theta2 / 6.0 + theta2 * theta2 / 120.0,
+            0.5 - theta2 / 24.0 + theta2 * theta2 / 720.0};
   const double theta = std::sqrt(theta2);
-  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
-         ((1.0 - std::cos(theta)) / theta2) * (W * W);
+  return {std::sin(theta) / theta, (1.0 - std::cos(theta)) / theta2};
+}
+
+// exp([w]x) by Rodrigues' formula.
+Eigen::Matrix3d rodrigues(const Eigen::Vector3d& w) {
+  const RodriguesCoefficients k = rodriguesCoefficients(w.squaredNorm());
+  const Eigen::Matrix3d W = skewSymmetric(w);
+  return Eigen::Matrix3d::Identity() + k.s * W + k.c * (W * W);
 }
 
 constexpr double kMinDepth = 1e-8;
 
-// The right Jacobian of SO(3): Exp(phi + d) = Exp(phi) Exp(Jr(phi) d) to first order in d.
+// The right Jacobian of SO(3): Exp(phi + d) = Exp(phi) Exp(Jr(phi) d) to first order in d;
+// Jr = I - c [phi]x + (1 - s) / theta^2 [phi]x^2 (the Rodrigues coefficients), the last one's
+// series 1/6 - theta^2 / 120 + theta^4 / 5040 below theta^2 = 1e-4.
 Eigen::Matrix3d rightJacobianSo3(const Eigen::Vector3d& phi) {
   const double theta2 = phi.squaredNorm();
+  const RodriguesCoefficients k = rodriguesCoefficients(theta2);
+  const double d =
+      theta2 < 1e-4 ? 1.0 / 6.0 - theta2 / 120.0 + theta2 * theta2 / 5040.0 : (1.0 - k.s) / theta2;
   const Eigen::Matrix3d P = skewSymmetric(phi);
-  if (theta2 < 1e-12) return Eigen::Matrix3d::Identity() - 0.5 * P + (1.0 / 6.0) * (P * P);
-  const double theta = std::sqrt(theta2);
-  return Eigen::Matrix3d::Identity() - ((1.0 - std::cos(theta)) / theta2) * P +
-         ((theta - std::sin(theta)) / (theta2 * theta)) * (P * P);
+  return Eigen::Matrix3d::Identity() - k.c * P + d * (P * P);
 }
 
-// The camera of the row exposed at tau: x_c(tau) = Exp(-w tau) (R_cw (X - v tau) + t_cw).
-BaCamera cameraAtTime(const BaCamera& c, const RollingShutterMotion& m, double tau) {
-  const Eigen::Matrix3d E = rodrigues(-tau * m.angular);
-  BaCamera at;
-  at.R_cw = E * c.R_cw;
-  at.t_cw = E * (c.t_cw - c.R_cw * (m.linear * tau));
-  return at;
+// Exp([phi]x) y by Rodrigues' formula on the vector (no matrix).
+Eigen::Vector3d rotateByExp(const Eigen::Vector3d& phi, const Eigen::Vector3d& y) {
+  const RodriguesCoefficients k = rodriguesCoefficients(phi.squaredNorm());
+  const Eigen::Vector3d py = phi.cross(y);
+  return y + k.s * py + k.c * phi.cross(py);
 }
 
 // Fixed point of the row: at most this many steps, stopping below this row change (pixels).
@@ -49,11 +62,12 @@ constexpr double kRowTolerancePx = 1e-9;
 }  // namespace
 
 BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observations,
-                               bool rolling_shutter)
+                               BaCapacity capacity)
     : max_cameras_(max_cameras),
       max_points_(max_points),
       max_observations_(max_observations),
-      rs_capacity_(rolling_shutter) {
+      capacity_(capacity) {
+  const bool rolling_shutter = capacity != BaCapacity::kGlobalShutter;
   const auto nc = static_cast<std::size_t>(std::max(0, max_cameras));
   const auto np = static_cast<std::size_t>(std::max(0, max_points));
   const auto no = static_cast<std::size_t>(std::max(0, max_observations));
@@ -69,7 +83,6 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
   pair_begin_.resize(np);
   pair_end_.resize(np);
   pair_Wc_.resize(pairs);
-  pair_WV_.resize(pairs);
   V_.resize(np);
   gp_.resize(np);
   Vinv_.resize(np);
@@ -83,8 +96,12 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
     motions_backup_.resize(nc);
     motion_D_.resize(nc);
     obs_entry_.resize(no);
+    row_.resize(no);
   }
-  const Eigen::Index n = (rolling_shutter ? 12 : 6) * static_cast<Eigen::Index>(nc) + 3;
+  // The reduced system: 6 or 12 per camera, then the intrinsics (f, k1, k2; the line delay too
+  // in solveTrajectory).
+  const Eigen::Index per_camera = capacity == BaCapacity::kRollingShutter ? 12 : 6;
+  const Eigen::Index n = per_camera * static_cast<Eigen::Index>(nc) + 4;
   S_.resize(n, n);
   A_.resize(n, n);
   rhs_.resize(n);
@@ -95,7 +112,11 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
 
 bool BundleAdjuster::project(const BaCamera& c, const BaIntrinsics& k, const Eigen::Vector3d& X,
                              Eigen::Vector2d& uv) {
-  const Eigen::Vector3d p = c.R_cw * X + c.t_cw;
+  return projectCameraPoint(k, c.R_cw * X + c.t_cw, uv);
+}
+
+bool BundleAdjuster::projectCameraPoint(const BaIntrinsics& k, const Eigen::Vector3d& p,
+                                        Eigen::Vector2d& uv) {
   if (!(p.z() > kMinDepth)) return false;
   const double xn = p.x() / p.z();
   const double yn = p.y() / p.z();
@@ -105,13 +126,13 @@ bool BundleAdjuster::project(const BaCamera& c, const BaIntrinsics& k, const Eig
   return true;
 }
 
-bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics& k,
-                                          const Eigen::Vector3d& X, Eigen::Vector2d& uv,
-                                          Eigen::Matrix<double, 2, 6>& J_cam,
-                                          Eigen::Matrix<double, 2, 3>& J_point,
-                                          Eigen::Matrix<double, 2, 3>& J_intr) {
-  const Eigen::Vector3d RX = c.R_cw * X;
-  const Eigen::Vector3d p = RX + c.t_cw;
+namespace {
+
+// The pinhole-with-radial-distortion projection of a camera-frame point p, d uv / d p and
+// d uv / d (f, k1, k2); false behind the camera.
+bool cameraPointJacobians(const BaIntrinsics& k, const Eigen::Vector3d& p, Eigen::Vector2d& uv,
+                          Eigen::Matrix<double, 2, 3>& J_uv_p,
+                          Eigen::Matrix<double, 2, 3>& J_intr) {
   if (!(p.z() > kMinDepth)) return false;
   const double iz = 1.0 / p.z();
   const double xn = p.x() * iz;
@@ -131,11 +152,7 @@ bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics&
   // d(xn, yn)/d(p)
   Eigen::Matrix<double, 2, 3> J_p;
   J_p << iz, 0.0, -xn * iz, 0.0, iz, -yn * iz;
-  const Eigen::Matrix<double, 2, 3> J_uv_p = J_n * J_p;
-  // p = exp(dtheta) R X + t + dt  =>  dp/ddtheta = -[R X]x, dp/ddt = I, dp/dX = R.
-  J_cam.leftCols<3>() = -J_uv_p * skewSymmetric(RX);
-  J_cam.rightCols<3>() = J_uv_p;
-  J_point = J_uv_p * c.R_cw;
+  J_uv_p = J_n * J_p;
   J_intr(0, 0) = d * xn;
   J_intr(1, 0) = k.aspect * d * yn;
   J_intr(0, 1) = fx * xn * r2;
@@ -145,22 +162,46 @@ bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics&
   return true;
 }
 
+}  // namespace
+
+bool BundleAdjuster::projectWithJacobians(const BaCamera& c, const BaIntrinsics& k,
+                                          const Eigen::Vector3d& X, Eigen::Vector2d& uv,
+                                          Eigen::Matrix<double, 2, 6>& J_cam,
+                                          Eigen::Matrix<double, 2, 3>& J_point,
+                                          Eigen::Matrix<double, 2, 3>& J_intr) {
+  const Eigen::Vector3d RX = c.R_cw * X;
+  Eigen::Matrix<double, 2, 3> J_uv_p;
+  if (!cameraPointJacobians(k, RX + c.t_cw, uv, J_uv_p, J_intr)) return false;
+  // p = exp(dtheta) R X + t + dt  =>  dp/ddtheta = -[R X]x, dp/ddt = I, dp/dX = R.
+  J_cam.leftCols<3>() = -J_uv_p * skewSymmetric(RX);
+  J_cam.rightCols<3>() = J_uv_p;
+  J_point = J_uv_p * c.R_cw;
+  return true;
+}
+
 bool BundleAdjuster::projectRollingShutter(const BaCamera& c, const RollingShutterMotion& m,
                                            const RollingShutter& shutter, const BaIntrinsics& k,
                                            const Eigen::Vector3d& X, Eigen::Vector2d& uv,
-                                           double& tau) {
+                                           double& tau, double start_row) {
   tau = 0.0;
-  if (!project(c, k, X, uv)) return false;
-  // The row y where g(y) = pi_y(x_c(tau(y))) - y = 0, from the reference row's projection. The
-  // plain iteration y <- pi_y contracts by line delay x row speed (a few %: 6-8 steps to 1e-9 px,
-  // algo/geometry/rolling_shutter.hpp); g is nearly linear in y, so secant steps on g reach the
-  // same tolerance in 3-4 projections.
-  double y = uv.y();
+  // The point in the camera of the row exposed at tau: x_c(tau) = Exp(-w tau) (R_cw (X - v tau) +
+  // t_cw) = Exp(-w tau) (x_0 - tau R_cw v), x_0 the reference row's.
+  const Eigen::Vector3d x_0 = c.R_cw * X + c.t_cw;
+  const Eigen::Vector3d Rv = c.R_cw * m.linear;
+  // The row y where g(y) = pi_y(x_c(tau(y))) - y = 0, from the reference row's projection (or a
+  // previous projection's row). The plain iteration y <- pi_y contracts by line delay x row speed
+  // (a few %: 6-8 steps to 1e-9 px, algo/geometry/rolling_shutter.hpp); g is nearly linear in y,
+  // so secant steps on g reach the same tolerance in 3-4 projections.
+  double y = start_row;
+  if (!std::isfinite(start_row)) {
+    if (!projectCameraPoint(k, x_0, uv)) return false;
+    y = uv.y();
+  }
   double y_prev = 0.0, g_prev = 0.0;
   for (int step = 0; step < kMaxRowSteps; ++step) {
     tau = shutter.rowTime(y);
     Eigen::Vector2d next;
-    if (!project(cameraAtTime(c, m, tau), k, X, next)) return false;
+    if (!projectCameraPoint(k, rotateByExp(-tau * m.angular, x_0 - tau * Rv), next)) return false;
     const double g = next.y() - y;
     uv = next;
     if (std::fabs(g) < kRowTolerancePx) {
@@ -187,12 +228,7 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
     Eigen::Vector2d* J_line_delay) {
   double tau = 0.0;
   if (!projectRollingShutter(c, m, shutter, k, X, uv, tau)) return false;
-  // At the row's camera the global-shutter Jacobians give d uv / d x_c (G: the translation
-  // columns), d uv / d X and d uv / d intrinsics with the row held.
-  const BaCamera at = cameraAtTime(c, m, tau);
-  Eigen::Matrix<double, 2, 6> J_at;
-  if (!projectWithJacobians(at, k, X, uv, J_at, J_point, J_intr)) return false;
-  const Eigen::Matrix<double, 2, 3> G = J_at.rightCols<3>();
+  // At the row's camera: d uv / d x_c (G) and d uv / d intrinsics with the row held.
   // x_c = E y, E = Exp(-w tau), y = a + t_cw, a = R_cw (X - v tau):
   //   d x_c / d dtheta = -E [a]x,  d x_c / d dt = E,
   //   d x_c / d w = tau E [y]x Jr(-w tau),  d x_c / d v = -tau E R_cw,
@@ -201,7 +237,10 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
   const Eigen::Vector3d a = c.R_cw * (X - m.linear * tau);
   const Eigen::Vector3d y = a + c.t_cw;
   const Eigen::Vector3d x_c = E * y;
+  Eigen::Matrix<double, 2, 3> G;
+  if (!cameraPointJacobians(k, x_c, uv, G, J_intr)) return false;
   const Eigen::Matrix<double, 2, 3> GE = G * E;
+  J_point = GE * c.R_cw;
   J_cam.leftCols<3>() = -GE * skewSymmetric(a);
   J_cam.rightCols<3>() = GE;
   J_motion.leftCols<3>() = tau * GE * skewSymmetric(y) * rightJacobianSo3(-tau * m.angular);
@@ -222,6 +261,38 @@ bool BundleAdjuster::projectRollingShutterWithJacobians(
   J_intr = M * J_intr;
   // The line delay moves the row's time at a held row by (y - reference_row).
   if (J_line_delay != nullptr) *J_line_delay = M * u_tau * (uv.y() - shutter.reference_row);
+  return true;
+}
+
+bool BundleAdjuster::rollingShutterGradient(const BaCamera& c, const RollingShutterMotion& m,
+                                            const RollingShutter& shutter, const BaIntrinsics& k,
+                                            const Eigen::Vector3d& X, double tau,
+                                            const Eigen::Vector2d& v, RollingShutterGradient& out) {
+  // projectRollingShutterWithJacobians transposed: with q = M^T v and u = (G E)^T q,
+  //   J_cam^T v = (a x u, u), J_motion^T v = (-tau Jr^T (y x u), -tau R_cw^T u),
+  //   J_point^T v = R_cw^T u, J_intr^T v = J_intr0^T q, J_l^T v = (u_tau . q) (row - reference).
+  const Eigen::Vector3d a = c.R_cw * (X - m.linear * tau);
+  const Eigen::Vector3d y = a + c.t_cw;
+  const Eigen::Vector3d x_c = rotateByExp(-tau * m.angular, y);
+  Eigen::Vector2d uv;
+  Eigen::Matrix<double, 2, 3> G;
+  Eigen::Matrix<double, 2, 3> J_intr0;
+  if (!cameraPointJacobians(k, x_c, uv, G, J_intr0)) return false;
+  const Eigen::Vector2d u_tau =
+      G * (-m.angular.cross(x_c) - rotateByExp(-tau * m.angular, c.R_cw * m.linear));
+  const double l = shutter.line_delay;
+  const double denom = 1.0 - l * u_tau.y();
+  if (!(std::fabs(denom) > 1e-6)) return false;
+  Eigen::Vector2d q = v;
+  q.y() += (l / denom) * u_tau.dot(v);
+  const Eigen::Vector3d u = rotateByExp(tau * m.angular, G.transpose() * q);  // E^T = Exp(w tau)
+  out.camera.head<3>() = a.cross(u);
+  out.camera.tail<3>() = u;
+  out.point = c.R_cw.transpose() * u;
+  out.motion.head<3>() = -tau * (rightJacobianSo3(-tau * m.angular).transpose() * y.cross(u));
+  out.motion.tail<3>() = -tau * out.point;
+  out.intrinsics = J_intr0.transpose() * q;
+  out.line_delay = u_tau.dot(q) * (uv.y() - shutter.reference_row);
   return true;
 }
 
@@ -313,15 +384,17 @@ double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
   double cost = 0.0;
   double sq = 0.0;
   const bool rs = !motions_.empty();
-  for (const BaObservation& o : observations) {
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    const BaObservation& o = observations[i];
     Eigen::Vector2d uv;
     double tau = 0.0;
     const bool seen =
         rs ? projectRollingShutter(cameras[static_cast<std::size_t>(o.camera)],
                                    motions_[static_cast<std::size_t>(o.camera)], shutter_, k,
-                                   points[static_cast<std::size_t>(o.point)], uv, tau)
+                                   points[static_cast<std::size_t>(o.point)], uv, tau, row_[i])
            : project(cameras[static_cast<std::size_t>(o.camera)], k,
                      points[static_cast<std::size_t>(o.point)], uv);
+    if (rs) row_[i] = seen ? uv.y() : kNoRow;
     if (!seen) {
       cost += 1e6;  // behind the camera: never an improvement
       sq += 1e6;
@@ -612,19 +685,57 @@ bool BundleAdjuster::trajectoryObservationJacobian(std::span<const BaCamera> cam
   return true;
 }
 
+bool BundleAdjuster::trajectoryObservationGradient(std::span<const BaCamera> cameras,
+                                                   std::span<const Eigen::Vector3d> points,
+                                                   std::span<const BaObservation> observations,
+                                                   int i, const BaIntrinsics& k,
+                                                   const BundleAdjustmentOptions& options,
+                                                   const Layout& L,
+                                                   TrajectoryObservationGradient& out) const {
+  const BaObservation& o = observations[static_cast<std::size_t>(i)];
+  const auto ci = static_cast<std::size_t>(o.camera);
+  const Eigen::Vector3d& X = points[static_cast<std::size_t>(o.point)];
+  Eigen::Vector2d uv;
+  double tau = 0.0;
+  double& row = row_[static_cast<std::size_t>(i)];
+  const bool seen = projectRollingShutter(cameras[ci], motions_[ci], shutter_, k, X, uv, tau, row);
+  row = seen ? uv.y() : kNoRow;
+  if (!seen) return false;
+  const Eigen::Vector2d r = uv - o.xy;
+  RollingShutterGradient gr;
+  if (!rollingShutterGradient(cameras[ci], motions_[ci], shutter_, k, X, tau,
+                              huberWeight(r.norm(), options.huber_px) * r, gr))
+    return false;
+  // The motion is the trajectory's (trajectoryObservationJacobian): D^T onto the three poses.
+  const Eigen::Matrix<double, 18, 1> gD = motion_D_[ci].transpose() * gr.motion;
+  out.g[0] = gD.segment<6>(0);
+  out.g[1] = gr.camera + gD.segment<6>(6);
+  out.g[2] = gD.segment<6>(12);
+  for (int j = 0; j < L.nk; ++j)
+    out.gk(j) = L.kcol[j] == 3 ? gr.line_delay : gr.intrinsics(L.kcol[j]);
+  out.gp = gr.point;
+  const BaTrajectoryNeighbours& nb = neighbours_[ci];
+  const int touched[3] = {nb.previous, o.camera, nb.next};
+  for (int a = 0; a < 3; ++a)
+    out.slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+  return true;
+}
+
 void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
                                          std::span<const Eigen::Vector3d> points,
                                          std::span<const BaObservation> observations,
                                          const BaIntrinsics& k,
-                                         const BundleAdjustmentOptions& options, const Layout& L) {
+                                         const BundleAdjustmentOptions& options, const Layout& L,
+                                         bool gradient_only) {
   const int n = L.n, np = L.np, no = L.no, nk = L.nk, k0 = L.k0;
   Eigen::MatrixXd& H = S_;
-  H.topLeftCorner(n, n).setZero();
+  if (!gradient_only) H.topLeftCorner(n, n).setZero();
   Eigen::VectorXd& g = rhs_;
   g.head(n).setZero();
   for (int p = 0; p < np; ++p) {
-    V_[static_cast<std::size_t>(p)].setZero();
     gp_[static_cast<std::size_t>(p)].setZero();
+    if (gradient_only) continue;
+    V_[static_cast<std::size_t>(p)].setZero();
     for (int e = pair_begin_[static_cast<std::size_t>(p)];
          e < pair_end_[static_cast<std::size_t>(p)]; ++e)
       pair_Wc_[static_cast<std::size_t>(e)].setZero();
@@ -634,6 +745,16 @@ void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
   for (int i = 0; i < no; ++i) {
     const auto ii = static_cast<std::size_t>(i);
     const auto pi = static_cast<std::size_t>(observations[ii].point);
+    if (gradient_only) {
+      TrajectoryObservationGradient og;
+      if (!trajectoryObservationGradient(cameras, points, observations, i, k, options, L, og))
+        continue;
+      for (int a = 0; a < 3; ++a)
+        if (og.slot[a] >= 0) g.segment<6>(og.slot[a]) += og.g[a];
+      if (nk > 0) g.segment(k0, nk) += og.gk.head(nk);
+      gp_[pi] += og.gp;
+      continue;
+    }
     Wk_[ii].setZero();
     TrajectoryObservationJacobian oj;
     if (!trajectoryObservationJacobian(cameras, points, observations[ii], k, options, L, oj))
@@ -665,11 +786,63 @@ void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
     V_[pi] += w * Jp.transpose() * Jp;
     gp_[pi] += w * Jp.transpose() * r;
   }
+  if (gradient_only) return;
   if (nk > 0) {
     for (int c = 0; c < k0; ++c)
       for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
   }
   for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+}
+
+bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points,
+                               std::span<const uint8_t> points_fixed,
+                               std::span<const BaObservation> observations, BaIntrinsics& k,
+                               const BundleAdjustmentOptions& options, const Layout& L,
+                               double& cost, double& rms, double& step2) {
+  const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
+  linearizeTrajectory(cameras, points, observations, k, options, L, true);
+  // b = -g_c + sum_p W_p V_p^-1 g_p, as formReducedSystem builds it, with its W and V^-1.
+  auto b = b_.head(n);
+  b = -rhs_.head(n);
+  for (int p = 0; p < np; ++p) {
+    if (pointIsFixed(points_fixed, p)) continue;
+    const auto pp = static_cast<std::size_t>(p);
+    const Eigen::Vector3d Vg = Vinv_[pp] * gp_[pp];
+    for (int e = pair_begin_[pp]; e < pair_end_[pp]; ++e)
+      b.segment<6>(pair_slot_[static_cast<std::size_t>(e)]).noalias() +=
+          pair_Wc_[static_cast<std::size_t>(e)] * Vg;
+    if (nk > 0) {
+      Eigen::Matrix<double, 4, 3> Wk_sum = Eigen::Matrix<double, 4, 3>::Zero();
+      for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
+        Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+      b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
+    }
+  }
+  auto dc = delta_.head(n);
+  dc = b;
+  const auto factor = A_.topLeftCorner(n, n).triangularView<Eigen::Lower>();
+  factor.solveInPlace(dc);
+  factor.transpose().solveInPlace(dc);
+  if (!dc.allFinite()) return false;
+  step2 = backSubstitute(observations, points_fixed, L);
+  // The frozen Hessian may overshoot where the Huber weights moved: the step, then half of it.
+  for (int halving = 0; halving < 2; ++halving) {
+    applyStep(cameras, points, k, L);
+    double new_rms = 0.0;
+    const double new_cost =
+        evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
+    if (std::isfinite(new_cost) && new_cost < cost) {
+      cost = new_cost;
+      rms = new_rms;
+      return true;
+    }
+    undoStep(cameras, points);
+    k = k_backup_;
+    dc *= 0.5;
+    for (int p = 0; p < np; ++p) dp_[static_cast<std::size_t>(p)] *= 0.5;
+    step2 *= 0.25;
+  }
+  return false;
 }
 
 bool BundleAdjuster::solveReducedSystem(double lambda, std::span<const uint8_t> points_fixed,
@@ -710,22 +883,19 @@ void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> p
     const int begin = pair_begin_[pp];
     const Eigen::Vector3d Vg = Vinv * gp_[pp];
     const int pair_end = pair_end_[pp];
-    for (int e = begin; e < pair_end; ++e) {
-      const auto ee = static_cast<std::size_t>(e);
-      pair_WV_[ee] = pair_Wc_[ee] * Vinv;
-      const int sa = pair_slot_[ee];
-      b.segment<6>(sa) += pair_WV_[ee] * gp_[pp];
-      if (nk > 0) A.block(sa, k0, 6, nk) -= (pair_WV_[ee] * Wk_sum.transpose()).leftCols(nk);
-    }
     // Upper triangle (sb >= sa), mirrored below; a camera seen twice pairs with both copies.
+    // noalias: the 6x6 products go straight into A, not through a temporary.
     int group = begin;  // first entry of the current slot
     for (int e = begin; e < pair_end; ++e) {
       const auto ee = static_cast<std::size_t>(e);
       const int sa = pair_slot_[ee];
+      b.segment<6>(sa).noalias() += pair_Wc_[ee] * Vg;
+      const Eigen::Matrix<double, 6, 3> WV = pair_Wc_[ee] * Vinv;
+      if (nk > 0) A.block(sa, k0, 6, nk) -= (WV * Wk_sum.transpose()).leftCols(nk);
       if (pair_slot_[static_cast<std::size_t>(group)] != sa) group = e;
       for (int f = group; f < pair_end; ++f) {
         const auto ff = static_cast<std::size_t>(f);
-        A.block<6, 6>(sa, pair_slot_[ff]) -= pair_WV_[ee] * pair_Wc_[ff].transpose();
+        A.block<6, 6>(sa, pair_slot_[ff]).noalias() -= WV * pair_Wc_[ff].transpose();
       }
     }
     if (nk > 0) {
@@ -852,7 +1022,8 @@ BundleAdjustmentSummary BundleAdjuster::solve(
     std::span<RollingShutterMotion> motions) {
   motions_ = {};
   if (shutter.line_delay != 0.0 && !motions.empty()) {
-    if (!rs_capacity_ || motions.size() != cameras.size() || !std::isfinite(shutter.line_delay))
+    if (capacity_ != BaCapacity::kRollingShutter || motions.size() != cameras.size() ||
+        !std::isfinite(shutter.line_delay))
       return {};  // kInvalidInput
     for (const RollingShutterMotion& m : motions)
       if (!m.angular.allFinite() || !m.linear.allFinite()) return {};
@@ -862,6 +1033,9 @@ BundleAdjustmentSummary BundleAdjuster::solve(
     velocity_prior_ = options.velocity_prior;
     motion_prior_mean_ = options.motion_prior_mean;
     if (!motion_prior_mean_.empty() && motion_prior_mean_.size() != motions.size()) return {};
+    if (observations.size() <= row_.size())
+      std::fill(row_.begin(), row_.begin() + static_cast<std::ptrdiff_t>(observations.size()),
+                kNoRow);
   }
   BundleAdjustmentSummary summary =
       solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
@@ -875,8 +1049,9 @@ BundleAdjustmentSummary BundleAdjuster::solveTrajectory(
     std::span<const BaObservation> observations, BaIntrinsics& k,
     const BundleAdjustmentOptions& options, const RollingShutter& shutter,
     std::span<const BaTrajectoryNeighbours> neighbours, std::span<RollingShutterMotion> motions) {
-  if (!rs_capacity_ || motions.size() != cameras.size() || neighbours.size() != cameras.size() ||
-      !std::isfinite(shutter.line_delay) || !std::isfinite(shutter.reference_row))
+  if (capacity_ == BaCapacity::kGlobalShutter || motions.size() != cameras.size() ||
+      neighbours.size() != cameras.size() || !std::isfinite(shutter.line_delay) ||
+      !std::isfinite(shutter.reference_row))
     return {};  // kInvalidInput
   const auto nc = static_cast<int>(cameras.size());
   for (const BaTrajectoryNeighbours& nb : neighbours)
@@ -887,6 +1062,9 @@ BundleAdjustmentSummary BundleAdjuster::solveTrajectory(
   velocity_prior_ = 0.0;  // no motion parameters
   motion_prior_mean_ = {};
   updateTrajectoryMotions(cameras);
+  if (observations.size() <= row_.size())
+    std::fill(row_.begin(), row_.begin() + static_cast<std::ptrdiff_t>(observations.size()),
+              kNoRow);
   BundleAdjustmentSummary summary =
       solveImpl(cameras, camera_fixed, points, points_fixed, observations, k, options);
   summary.line_delay = shutter_.line_delay;
@@ -918,8 +1096,30 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
   }
   double lambda = options.initial_lambda;
   summary.status = Status::kMaxIterations;
+  const auto converged = [&](double decrease, double step2) {
+    double scale2 = 0.0;
+    for (std::size_t p = 0; p < points.size(); ++p) scale2 += points[p].squaredNorm();
+    for (const BaCamera& c : cameras) scale2 += c.t_cw.squaredNorm();
+    return decrease < options.function_tolerance ||
+           step2 <= options.step_tolerance * options.step_tolerance * (scale2 + 1e-300);
+  };
+  // A_ holds the Cholesky factor of the last full iteration's reduced system (chord steps).
+  bool factor_ready = false;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     summary.iterations = iter + 1;
+    if (factor_ready) {
+      const double before = cost;
+      double step2 = 0.0;
+      if (chordStep(cameras, points, points_fixed, observations, k, options, L, cost, rms, step2)) {
+        ++summary.chord_steps;
+        if (converged((before - cost) / std::max(before, 1e-300), step2)) {
+          summary.status = Status::kConverged;
+          break;
+        }
+        continue;
+      }
+      factor_ready = false;  // the frozen Hessian no longer leads down: a full iteration
+    }
     if (L.traj)
       linearizeTrajectory(cameras, points, observations, k, options, L);
     else
@@ -949,11 +1149,8 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
         rms = new_rms;
         lambda = std::max(lambda / 3.0, 1e-15);
         accepted = true;
-        double scale2 = 0.0;
-        for (std::size_t p = 0; p < points.size(); ++p) scale2 += points[p].squaredNorm();
-        for (const BaCamera& c : cameras) scale2 += c.t_cw.squaredNorm();
-        if (decrease < options.function_tolerance ||
-            step2 <= options.step_tolerance * options.step_tolerance * (scale2 + 1e-300)) {
+        factor_ready = options.reuse_factorization && L.traj;
+        if (converged(decrease, step2)) {
           summary.status = Status::kConverged;
           stop = true;
         }

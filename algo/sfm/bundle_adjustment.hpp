@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -66,6 +67,13 @@ struct BundleAdjustmentOptions {
   /// The smooth-trajectory adjustment (solveTrajectory): also estimate the line delay (the
   /// readout), one parameter shared by every camera.
   bool refine_readout = false;
+  /// The smooth-trajectory adjustment: after an iteration that formed and factorized the reduced
+  /// system, the next ones reuse that factorization with the new gradient (a chord step: the
+  /// Newton step of the Hessian as it was, the frozen W and V^-1 in the back-substitution),
+  /// until one fails to lower the cost; then a full iteration again. For an adjustment started
+  /// near its minimum (the rolling-shutter refinement after the global-shutter solve) the
+  /// Hessian hardly moves, while forming it is O(k^2) per point of k observations.
+  bool reuse_factorization = false;
 };
 
 struct BundleAdjustmentSummary {
@@ -77,6 +85,7 @@ struct BundleAdjustmentSummary {
   };
   Status status = Status::kInvalidInput;
   int iterations = 0;
+  int chord_steps = 0;  ///< of those, steps with the factorization reused (reuse_factorization)
   double initial_cost = 0.0;  ///< 1/2 sum of robustified squared residuals (pixels^2)
   double final_cost = 0.0;
   double initial_rms_px = 0.0;  ///< RMS reprojection error before and after (plain, not robust)
@@ -89,6 +98,16 @@ struct BundleAdjustmentSummary {
   double line_delay = 0.0;
   double line_delay_std_error = 0.0;
   double line_delay_std_error_independent = 0.0;
+};
+
+/// What a BundleAdjuster's storage is sized for.
+enum class BaCapacity : uint8_t {
+  kGlobalShutter,  ///< `solve` (6 parameters per camera)
+  /// Also `solve` with a readout motion per camera (12 parameters per camera: a reduced system
+  /// 4x larger) and `solveTrajectory`.
+  kRollingShutter,
+  /// Also `solveTrajectory` (6 per camera: the motions are the trajectory's, not parameters).
+  kSmoothTrajectory,
 };
 
 /// Sparse bundle adjustment by Levenberg-Marquardt with the Schur complement (Triggs et al.,
@@ -104,10 +123,8 @@ struct BundleAdjustmentSummary {
 /// Storage is sized at construction from the capacities; `solve` does not allocate.
 class BundleAdjuster {
  public:
-  /// `rolling_shutter`: also size the storage for the rolling-shutter solve (12 parameters per
-  /// camera instead of 6: the reduced system is 4x larger).
   BundleAdjuster(int max_cameras, int max_points, int max_observations,
-                 bool rolling_shutter = false);
+                 BaCapacity capacity = BaCapacity::kGlobalShutter);
 
   /// Refines `cameras` (except those with camera_fixed[i] != 0), every point of `points`, and the
   /// intrinsics requested by `options`, in place. `points_fixed` may be empty (all free).
@@ -182,7 +199,10 @@ class BundleAdjuster {
   /// 1e-9 px) and the row's time `tau`; false when behind the camera or not settling.
   static bool projectRollingShutter(const BaCamera& camera, const RollingShutterMotion& motion,
                                     const RollingShutter& shutter, const BaIntrinsics& k,
-                                    const Eigen::Vector3d& X, Eigen::Vector2d& uv, double& tau);
+                                    const Eigen::Vector3d& X, Eigen::Vector2d& uv, double& tau,
+                                    double start_row = kNoRow);
+  /// No row known yet: projectRollingShutter starts from the reference row's projection.
+  static constexpr double kNoRow = std::numeric_limits<double>::quiet_NaN();
 
   /// Its analytic Jacobians with respect to the camera update (dtheta, dt), the motion (w, v), the
   /// point and the intrinsics (f, k1, k2), the row's dependence included.
@@ -193,9 +213,26 @@ class BundleAdjuster {
       Eigen::Matrix<double, 2, 3>& J_point, Eigen::Matrix<double, 2, 3>& J_intr,
       Eigen::Vector2d* J_line_delay = nullptr);
 
+  /// J^T v of those Jacobians (the gradient of a residual weighted by `v`), at the row time `tau`
+  /// projectRollingShutter found: vector products (reverse mode) instead of the 2 x 6 matrices.
+  struct RollingShutterGradient {
+    Eigen::Matrix<double, 6, 1> camera;  ///< (dtheta, dt)
+    Eigen::Matrix<double, 6, 1> motion;  ///< (w, v)
+    Eigen::Vector3d point;
+    Eigen::Vector3d intrinsics;  ///< (f, k1, k2)
+    double line_delay = 0.0;
+  };
+  static bool rollingShutterGradient(const BaCamera& camera, const RollingShutterMotion& motion,
+                                     const RollingShutter& shutter, const BaIntrinsics& k,
+                                     const Eigen::Vector3d& X, double tau, const Eigen::Vector2d& v,
+                                     RollingShutterGradient& out);
+
   /// Projection used by the adjustment (for tests and callers): false when behind the camera.
   static bool project(const BaCamera& camera, const BaIntrinsics& k, const Eigen::Vector3d& X,
                       Eigen::Vector2d& uv);
+  /// The projection of a point already in camera coordinates (false behind the camera).
+  static bool projectCameraPoint(const BaIntrinsics& k, const Eigen::Vector3d& p_camera,
+                                 Eigen::Vector2d& uv);
 
   /// Analytic Jacobians of the projection with respect to the camera update (dtheta, dt), the point
   /// and the intrinsics (f, k1, k2). Exposed for the numeric-vs-analytic test.
@@ -238,10 +275,20 @@ class BundleAdjuster {
                  std::span<const BaObservation> observations, const BaIntrinsics& k,
                  const BundleAdjustmentOptions& options, const Layout& L);
   /// linearize for the smooth-trajectory model (pair_Wc_ accumulated per merged entry).
+  /// With `gradient_only`, the gradients g_c and g_p alone (U, V and W keep the values of the
+  /// last full linearization: the chord step's).
   void linearizeTrajectory(std::span<const BaCamera> cameras,
                            std::span<const Eigen::Vector3d> points,
                            std::span<const BaObservation> observations, const BaIntrinsics& k,
-                           const BundleAdjustmentOptions& options, const Layout& L);
+                           const BundleAdjustmentOptions& options, const Layout& L,
+                           bool gradient_only = false);
+  /// The chord step (BundleAdjustmentOptions::reuse_factorization): the reduced right-hand side
+  /// from the new gradients and the last form's W V^-1, solved with the Cholesky factor left in
+  /// A_; false when it does not lower `cost` (the step undone).
+  bool chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points,
+                 std::span<const uint8_t> points_fixed, std::span<const BaObservation> observations,
+                 BaIntrinsics& k, const BundleAdjustmentOptions& options, const Layout& L,
+                 double& cost, double& rms, double& step2);
   /// One observation of the smooth-trajectory model linearized: its residual r, Huber weight w,
   /// Jacobians on the previous, own and next camera's pose (J, at reduced-system slots `slot`,
   /// -1: fixed or none), on the refined intrinsics (Jk, `Layout::kcol` order) and on the point.
@@ -259,6 +306,20 @@ class BundleAdjuster {
                                      const BaObservation& o, const BaIntrinsics& k,
                                      const BundleAdjustmentOptions& options, const Layout& L,
                                      TrajectoryObservationJacobian& out) const;
+  /// The gradient part of an observation of the smooth-trajectory model: its weighted residual
+  /// pulled back onto the previous, own and next camera's pose (g, at `slot`), the refined
+  /// intrinsics (gk, `Layout::kcol` order) and the point (gp); false: not projected.
+  struct TrajectoryObservationGradient {
+    Eigen::Matrix<double, 6, 1> g[3];
+    int slot[3] = {-1, -1, -1};
+    Eigen::Vector4d gk = Eigen::Vector4d::Zero();
+    Eigen::Vector3d gp = Eigen::Vector3d::Zero();
+  };
+  bool trajectoryObservationGradient(std::span<const BaCamera> cameras,
+                                     std::span<const Eigen::Vector3d> points,
+                                     std::span<const BaObservation> observations, int i,
+                                     const BaIntrinsics& k, const BundleAdjustmentOptions& options,
+                                     const Layout& L, TrajectoryObservationGradient& out) const;
   /// The line delay's variance from the scatter of each point's pull on it (the cluster-robust
   /// sandwich, one cluster per point): `u` = A^-1 e_readout on the reduced system.
   double lineDelayClusterVariance(std::span<const BaCamera> cameras,
@@ -301,7 +362,7 @@ class BundleAdjuster {
   int max_cameras_;
   int max_points_;
   int max_observations_;
-  bool rs_capacity_;
+  BaCapacity capacity_;
   // The rolling-shutter solve in progress (empty motions: the global shutter).
   RollingShutter shutter_;
   std::span<RollingShutterMotion> motions_;
@@ -331,12 +392,15 @@ class BundleAdjuster {
   std::vector<int> pair_slot_;
   std::vector<int> pair_end_;
   std::vector<Eigen::Matrix<double, 6, 3>> pair_Wc_;
-  std::vector<Eigen::Matrix<double, 6, 3>> pair_WV_;
   std::vector<Eigen::Matrix3d> V_;               // per point J_p^T W J_p
   std::vector<Eigen::Vector3d> gp_;              // per point J_p^T W r
   std::vector<Eigen::Matrix<double, 6, 3>> Wc_;  // per observation J_c^T W J_p
   std::vector<Eigen::Matrix<double, 4, 3>> Wk_;  // per observation J_k^T W J_p
   std::vector<Eigen::Matrix3d> Vinv_;
+  /// The row each observation was last projected to (rolling shutter; kNoRow: none yet): where
+  /// the next projection's row iteration starts, one or two projections fewer after a small
+  /// step. A start, not state: the projection converges to the same row from anywhere near.
+  mutable std::vector<double> row_;
   std::vector<Eigen::Vector3d> dp_;
   std::vector<BaCamera> cameras_backup_;
   std::vector<Eigen::Vector3d> points_backup_;

@@ -60,7 +60,7 @@ LiveMap::LiveMap(const LiveMapOptions& options, const CameraIntrinsics& intrinsi
       pnp_(std::max(4, options.max_features)),
       ba_(options.ba_window + options.ba_fixed, options.max_points,
           (options.ba_window + options.ba_fixed) * options.max_features,
-          options.readout_frames > 0.0),
+          options.readout_frames > 0.0 ? BaCapacity::kRollingShutter : BaCapacity::kGlobalShutter),
       homography_(std::max(8, options.max_features)),
       essential_(std::max(8, options.max_features)) {
   EPITRACK_ASSERT(options.max_features > 0 && options.max_points > 0);

@@ -200,7 +200,7 @@ TEST_CASE("Rolling-shutter BA recovers the poses, the readout motions and the po
   std::vector<uint8_t> fixed(s.cameras.size(), 0);
   fixed[0] = fixed[1] = 1;
   BundleAdjuster ba(static_cast<int>(s.cameras.size()), static_cast<int>(s.points.size()),
-                    static_cast<int>(s.obs.size()), true);
+                    static_cast<int>(s.obs.size()), epitrack::BaCapacity::kRollingShutter);
   BundleAdjustmentOptions o;
   o.huber_px = 0.0;
   const auto summary =
@@ -275,7 +275,7 @@ TEST_CASE("Rolling-shutter BA with a zero readout is the global-shutter BA, bit 
   BundleAdjuster global(static_cast<int>(a.cameras.size()), static_cast<int>(a.points.size()),
                         static_cast<int>(a.obs.size()));
   BundleAdjuster rolling(static_cast<int>(a.cameras.size()), static_cast<int>(a.points.size()),
-                         static_cast<int>(a.obs.size()), true);
+                         static_cast<int>(a.obs.size()), epitrack::BaCapacity::kRollingShutter);
   const auto sa = global.solve(a.cameras, fixed, a.points, {}, a.obs, a.k, o);
   const auto sb =
       rolling.solve(b.cameras, fixed, b.points, {}, b.obs, b.k, o, RollingShutter{}, b.motions);

@@ -148,6 +148,11 @@ std::vector<CommandCase> commandCases() {
                    " " + frames + " --focal 420 --repeat 1",
                    {"repeat", "threads", "frames", "focal"},
                    {{" " + miss + " --focal 420", f.missing}}});
+  cases.push_back({"epitrack-bench rolling-shutter",
+                   bench + " rolling-shutter",
+                   " " + frames + " --focal 420 --repeat 1",
+                   {"repeat", "threads", "frames", "readout", "focal"},
+                   {{" " + miss + " --focal 420", f.missing}}});
 #endif
   return cases;
 }

@@ -41,4 +41,19 @@ bool loadBenchFrames(const std::string& input, int max_frames, std::vector<Image
   return true;
 }
 
+TrackTable trackFrames(const std::vector<Image<uint8_t>>& frames,
+                       const FeatureTrackerOptions& options) {
+  FeatureTracker tracker(options, frames.front().width(), frames.front().height());
+  TrackTable tracks;
+  tracks.reserve(static_cast<int>(frames.size()),
+                 frames.size() * static_cast<std::size_t>(options.max_features));
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    tracker.track(frames[f].constView());
+    for (const auto& ft : tracker.features()) tracks.add(static_cast<int>(f), ft.id, ft.x, ft.y);
+  }
+  tracks.setFrameCount(static_cast<int>(frames.size()));
+  tracks.finalize();
+  return tracks;
+}
+
 }  // namespace epitrack::bench

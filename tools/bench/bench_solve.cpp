@@ -64,16 +64,7 @@ SolveRun solveEpitrack(const std::vector<Image<uint8_t>>& frames, const FeatureT
   const int w = frames.front().width();
   const int h = frames.front().height();
   double t0 = cpuSeconds();
-  FeatureTracker tracker(to, w, h);
-  TrackTable tracks;
-  tracks.reserve(static_cast<int>(frames.size()),
-                 frames.size() * static_cast<std::size_t>(to.max_features));
-  for (std::size_t f = 0; f < frames.size(); ++f) {
-    tracker.track(frames[f].constView());
-    for (const auto& ft : tracker.features()) tracks.add(static_cast<int>(f), ft.id, ft.x, ft.y);
-  }
-  tracks.setFrameCount(static_cast<int>(frames.size()));
-  tracks.finalize();
+  const TrackTable tracks = trackFrames(frames, to);
   double t1 = cpuSeconds();
   run.tracking = t1 - t0;
   SolverOptions so;

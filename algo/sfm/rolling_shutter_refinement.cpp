@@ -15,15 +15,18 @@ namespace epitrack {
 
 namespace {
 
-// The joint adjustment stops when an iteration lowers the cost by less than this fraction. It
-// starts from the converged global-shutter solve, takes most of the rows' shear out in its first
-// two or three iterations, then the Huber loss's reweighting makes its tail linear (the decrease
-// falls about 0.4x per iteration). A relative 1e-4 is far below the cost's own scatter (sqrt(2N)
-// of N residuals' mean square, 2e-2 relative at N = 64 000) and stops after 7 iterations instead
-// of 12 at 1e-6 (the global solve's): ATE, rotation and reprojection RMS of the fast orbit
-// (docs/rolling-shutter.md, tracked, readout given) agree to 1e-6 of the path, 1e-5 degree and
-// 1e-4 px (2026-12-07).
-constexpr double kRelativeCostDecreaseToStop = 1e-4;
+// When the joint adjustment stops: an iteration that lowers the cost by less than half the
+// residuals' variance, sigma^2 / 2 = cost / N of N residuals (2 per observation). The cost's
+// excess over the minimum is 1/2 d^T H d for a deviation d of the parameters, i.e. sigma^2 / 2 per
+// squared standard deviation of d along its direction. The tail converges linearly (the Huber
+// loss's reweighting: the decrease falls 0.4-0.9x per iteration, chord steps or full ones), so what
+// remains, rho / (1 - rho) times the last decrease, is within one standard deviation along the
+// least determined direction at rho <= 0.5, three at 0.9. At 1e-6 of the cost (the global solve's
+// stop) the adjustment took twelve iterations on the fast orbit (docs/rolling-shutter.md); this
+// stop is about 1/N relative, 1.5e-5 there; 1e-4 was up to four standard deviations short.
+double relativeDecreaseToStop(std::size_t observations) {
+  return 1.0 / (2.0 * static_cast<double>(std::max<std::size_t>(observations, 1)));
+}
 
 struct Workspace {
   std::vector<int> point_of_track;
@@ -207,7 +210,7 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   bo.max_iterations = options.ba_iterations;
   bo.huber_px = options.huber_px;
   bo.refine_focal = options.refine_focal;
-  bo.function_tolerance = kRelativeCostDecreaseToStop;
+  bo.function_tolerance = relativeDecreaseToStop(observations.size());
   bo.reuse_factorization = true;
   bo.velocity_prior = prior;
   bo.motion_prior_mean = ba_targets;

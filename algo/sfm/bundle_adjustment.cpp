@@ -653,6 +653,13 @@ void BundleAdjuster::linearize(std::span<const BaCamera> cameras,
   }
 }
 
+void BundleAdjuster::trajectorySlots(int camera, int slot[3]) const {
+  const BaTrajectoryNeighbours& nb = neighbours_[static_cast<std::size_t>(camera)];
+  const int touched[3] = {nb.previous, camera, nb.next};
+  for (int a = 0; a < 3; ++a)
+    slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+}
+
 bool BundleAdjuster::trajectoryObservationJacobian(std::span<const BaCamera> cameras,
                                                    std::span<const Eigen::Vector3d> points,
                                                    const BaObservation& o, const BaIntrinsics& k,
@@ -678,10 +685,7 @@ bool BundleAdjuster::trajectoryObservationJacobian(std::span<const BaCamera> cam
   out.J[0] = JmD.middleCols<6>(0);
   out.J[1] = Jc + JmD.middleCols<6>(6);
   out.J[2] = JmD.middleCols<6>(12);
-  const BaTrajectoryNeighbours& nb = neighbours_[ci];
-  const int touched[3] = {nb.previous, o.camera, nb.next};
-  for (int a = 0; a < 3; ++a)
-    out.slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+  trajectorySlots(o.camera, out.slot);
   return true;
 }
 
@@ -714,10 +718,7 @@ bool BundleAdjuster::trajectoryObservationGradient(std::span<const BaCamera> cam
   for (int j = 0; j < L.nk; ++j)
     out.gk(j) = L.kcol[j] == 3 ? gr.line_delay : gr.intrinsics(L.kcol[j]);
   out.gp = gr.point;
-  const BaTrajectoryNeighbours& nb = neighbours_[ci];
-  const int touched[3] = {nb.previous, o.camera, nb.next};
-  for (int a = 0; a < 3; ++a)
-    out.slot[a] = touched[a] < 0 ? -1 : camera_slot_[static_cast<std::size_t>(touched[a])];
+  trajectorySlots(o.camera, out.slot);
   return true;
 }
 
@@ -799,27 +800,11 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
                                std::span<const BaObservation> observations, BaIntrinsics& k,
                                const BundleAdjustmentOptions& options, const Layout& L,
                                double& cost, double& rms, double& step2) {
-  const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
+  const int n = L.n, np = L.np;
   linearizeTrajectory(cameras, points, observations, k, options, L, true);
-  // b = -g_c + sum_p W_p V_p^-1 g_p, as formReducedSystem builds it, with its W and V^-1.
-  auto b = b_.head(n);
-  b = -rhs_.head(n);
-  for (int p = 0; p < np; ++p) {
-    if (pointIsFixed(points_fixed, p)) continue;
-    const auto pp = static_cast<std::size_t>(p);
-    const Eigen::Vector3d Vg = Vinv_[pp] * gp_[pp];
-    for (int e = pair_begin_[pp]; e < pair_end_[pp]; ++e)
-      b.segment<6>(pair_slot_[static_cast<std::size_t>(e)]).noalias() +=
-          pair_Wc_[static_cast<std::size_t>(e)] * Vg;
-    if (nk > 0) {
-      Eigen::Matrix<double, 4, 3> Wk_sum = Eigen::Matrix<double, 4, 3>::Zero();
-      for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
-        Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
-      b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
-    }
-  }
+  formReducedRhs(points_fixed, L);  // with the last form's W and V^-1
   auto dc = delta_.head(n);
-  dc = b;
+  dc = b_.head(n);
   const auto factor = A_.topLeftCorner(n, n).triangularView<Eigen::Lower>();
   factor.solveInPlace(dc);
   factor.transpose().solveInPlace(dc);
@@ -862,14 +847,11 @@ void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> p
                                        const Layout& L) {
   const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
   const Eigen::MatrixXd& H = S_;
-  const Eigen::VectorXd& g = rhs_;
   // Reduced camera system: (U + lambda D) - sum_p W_p (V_p + lambda D_p)^-1 W_p^T, rebuilt from
   // the undamped blocks at each attempt, in the preallocated A_ / b_.
   auto A = A_.topLeftCorner(n, n);
   A = H.topLeftCorner(n, n);
   for (int i = 0; i < n; ++i) A(i, i) = diag_(i) * (1.0 + lambda) + 1e-12;
-  auto b = b_.head(n);
-  b = -g.head(n);
   for (int p = 0; p < np; ++p) {
     if (pointIsFixed(points_fixed, p)) continue;
     const auto pp = static_cast<std::size_t>(p);
@@ -877,11 +859,8 @@ void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> p
     for (int j = 0; j < 3; ++j) Vd(j, j) = V_[pp](j, j) * (1.0 + lambda) + 1e-12;
     const Eigen::Matrix3d Vinv = Vd.inverse();
     Vinv_[pp] = Vinv;
-    Eigen::Matrix<double, 4, 3> Wk_sum = Eigen::Matrix<double, 4, 3>::Zero();
-    for (int a = point_obs_offset_[pp]; a < point_obs_offset_[pp + 1]; ++a)
-      Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+    const Eigen::Matrix<double, 4, 3> Wk_sum = intrinsicsCoupling(pp);
     const int begin = pair_begin_[pp];
-    const Eigen::Vector3d Vg = Vinv * gp_[pp];
     const int pair_end = pair_end_[pp];
     // Upper triangle (sb >= sa), mirrored below; a camera seen twice pairs with both copies.
     // noalias: the 6x6 products go straight into A, not through a temporary.
@@ -889,7 +868,6 @@ void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> p
     for (int e = begin; e < pair_end; ++e) {
       const auto ee = static_cast<std::size_t>(e);
       const int sa = pair_slot_[ee];
-      b.segment<6>(sa).noalias() += pair_Wc_[ee] * Vg;
       const Eigen::Matrix<double, 6, 3> WV = pair_Wc_[ee] * Vinv;
       if (nk > 0) A.block(sa, k0, 6, nk) -= (WV * Wk_sum.transpose()).leftCols(nk);
       if (pair_slot_[static_cast<std::size_t>(group)] != sa) group = e;
@@ -898,14 +876,36 @@ void BundleAdjuster::formReducedSystem(double lambda, std::span<const uint8_t> p
         A.block<6, 6>(sa, pair_slot_[ff]).noalias() -= WV * pair_Wc_[ff].transpose();
       }
     }
-    if (nk > 0) {
+    if (nk > 0)
       A.block(k0, k0, nk, nk) -= (Wk_sum * Vinv * Wk_sum.transpose()).topLeftCorner(nk, nk);
-      b.segment(k0, nk) += (Wk_sum * Vg).head(nk);
-    }
   }
   // Mirror the upper triangle.
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) A(j, i) = A(i, j);
+  formReducedRhs(points_fixed, L);
+}
+
+Eigen::Matrix<double, 4, 3> BundleAdjuster::intrinsicsCoupling(std::size_t p) const {
+  Eigen::Matrix<double, 4, 3> Wk_sum = Eigen::Matrix<double, 4, 3>::Zero();
+  for (int a = point_obs_offset_[p]; a < point_obs_offset_[p + 1]; ++a)
+    Wk_sum += Wk_[static_cast<std::size_t>(point_obs_index_[static_cast<std::size_t>(a)])];
+  return Wk_sum;
+}
+
+void BundleAdjuster::formReducedRhs(std::span<const uint8_t> points_fixed, const Layout& L) {
+  const int n = L.n, np = L.np, nk = L.nk, k0 = L.k0;
+  // b = -g_c + sum_p W_p V_p^-1 g_p (the points' part of the gradient carried to the cameras).
+  auto b = b_.head(n);
+  b = -rhs_.head(n);
+  for (int p = 0; p < np; ++p) {
+    if (pointIsFixed(points_fixed, p)) continue;
+    const auto pp = static_cast<std::size_t>(p);
+    const Eigen::Vector3d Vg = Vinv_[pp] * gp_[pp];
+    for (int e = pair_begin_[pp]; e < pair_end_[pp]; ++e)
+      b.segment<6>(pair_slot_[static_cast<std::size_t>(e)]).noalias() +=
+          pair_Wc_[static_cast<std::size_t>(e)] * Vg;
+    if (nk > 0) b.segment(k0, nk) += (intrinsicsCoupling(pp) * Vg).head(nk);
+  }
 }
 
 double BundleAdjuster::backSubstitute(std::span<const BaObservation> observations,

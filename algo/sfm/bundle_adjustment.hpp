@@ -282,6 +282,13 @@ class BundleAdjuster {
                            std::span<const BaObservation> observations, const BaIntrinsics& k,
                            const BundleAdjustmentOptions& options, const Layout& L,
                            bool gradient_only = false);
+  /// The reduced system's right-hand side b_ from the gradients (rhs_, gp_) and the last form's
+  /// W, V^-1: formReducedSystem's, and the chord step's with a new gradient.
+  void formReducedRhs(std::span<const uint8_t> points_fixed, const Layout& L);
+  /// Sum of point p's observations' intrinsics couplings (Wk_).
+  Eigen::Matrix<double, 4, 3> intrinsicsCoupling(std::size_t p) const;
+  /// The reduced-system slots of the previous, own and next camera of `camera` (-1: none, fixed).
+  void trajectorySlots(int camera, int slot[3]) const;
   /// The chord step (BundleAdjustmentOptions::reuse_factorization): the reduced right-hand side
   /// from the new gradients and the last form's W V^-1, solved with the Cholesky factor left in
   /// A_; false when it does not lower `cost` (the step undone).

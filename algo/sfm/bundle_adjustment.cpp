@@ -39,20 +39,35 @@ constexpr double kMinDepth = 1e-8;
 // The right Jacobian of SO(3): Exp(phi + d) = Exp(phi) Exp(Jr(phi) d) to first order in d;
 // Jr = I - c [phi]x + (1 - s) / theta^2 [phi]x^2 (the Rodrigues coefficients), the last one's
 // series 1/6 - theta^2 / 120 + theta^4 / 5040 below theta^2 = 1e-4.
+double rightJacobianSquareCoefficient(double theta2, const RodriguesCoefficients& k) {
+  return theta2 < 1e-4 ? 1.0 / 6.0 - theta2 / 120.0 + theta2 * theta2 / 5040.0
+                       : (1.0 - k.s) / theta2;
+}
 Eigen::Matrix3d rightJacobianSo3(const Eigen::Vector3d& phi) {
   const double theta2 = phi.squaredNorm();
   const RodriguesCoefficients k = rodriguesCoefficients(theta2);
-  const double d =
-      theta2 < 1e-4 ? 1.0 / 6.0 - theta2 / 120.0 + theta2 * theta2 / 5040.0 : (1.0 - k.s) / theta2;
+  const double d = rightJacobianSquareCoefficient(theta2, k);
   const Eigen::Matrix3d P = skewSymmetric(phi);
   return Eigen::Matrix3d::Identity() - k.c * P + d * (P * P);
 }
 
-// Exp([phi]x) y by Rodrigues' formula on the vector (no matrix).
-Eigen::Vector3d rotateByExp(const Eigen::Vector3d& phi, const Eigen::Vector3d& y) {
-  const RodriguesCoefficients k = rodriguesCoefficients(phi.squaredNorm());
+// Jr(phi)^T v as vectors: Jr^T = I + c [phi]x + d [phi]x^2 (rightJacobianSo3 transposed).
+Eigen::Vector3d rightJacobianSo3TransposeTimes(const Eigen::Vector3d& phi,
+                                               const RodriguesCoefficients& k,
+                                               const Eigen::Vector3d& v) {
+  const double d = rightJacobianSquareCoefficient(phi.squaredNorm(), k);
+  const Eigen::Vector3d pv = phi.cross(v);
+  return v + k.c * pv + d * phi.cross(pv);
+}
+
+// Exp([phi]x) y by Rodrigues' formula on the vector (no matrix), with phi's coefficients.
+Eigen::Vector3d rotateByExp(const Eigen::Vector3d& phi, const RodriguesCoefficients& k,
+                            const Eigen::Vector3d& y) {
   const Eigen::Vector3d py = phi.cross(y);
   return y + k.s * py + k.c * phi.cross(py);
+}
+Eigen::Vector3d rotateByExp(const Eigen::Vector3d& phi, const Eigen::Vector3d& y) {
+  return rotateByExp(phi, rodriguesCoefficients(phi.squaredNorm()), y);
 }
 
 // Fixed point of the row: at most this many steps, stopping below this row change (pixels).
@@ -95,6 +110,8 @@ BundleAdjuster::BundleAdjuster(int max_cameras, int max_points, int max_observat
     Wv_.resize(no);
     motions_backup_.resize(nc);
     motion_D_.resize(nc);
+    camera_gradient_.resize(nc);
+    motion_gradient_.resize(nc);
     obs_entry_.resize(no);
     row_.resize(no);
   }
@@ -273,23 +290,26 @@ bool BundleAdjuster::rollingShutterGradient(const BaCamera& c, const RollingShut
   //   J_point^T v = R_cw^T u, J_intr^T v = J_intr0^T q, J_l^T v = (u_tau . q) (row - reference).
   const Eigen::Vector3d a = c.R_cw * (X - m.linear * tau);
   const Eigen::Vector3d y = a + c.t_cw;
-  const Eigen::Vector3d x_c = rotateByExp(-tau * m.angular, y);
+  // E = Exp(-w tau) and E^T = Exp(w tau) share their coefficients (functions of theta^2).
+  const Eigen::Vector3d phi = -tau * m.angular;
+  const RodriguesCoefficients coefficients = rodriguesCoefficients(phi.squaredNorm());
+  const Eigen::Vector3d x_c = rotateByExp(phi, coefficients, y);
   Eigen::Vector2d uv;
   Eigen::Matrix<double, 2, 3> G;
   Eigen::Matrix<double, 2, 3> J_intr0;
   if (!cameraPointJacobians(k, x_c, uv, G, J_intr0)) return false;
   const Eigen::Vector2d u_tau =
-      G * (-m.angular.cross(x_c) - rotateByExp(-tau * m.angular, c.R_cw * m.linear));
+      G * (-m.angular.cross(x_c) - rotateByExp(phi, coefficients, c.R_cw * m.linear));
   const double l = shutter.line_delay;
   const double denom = 1.0 - l * u_tau.y();
   if (!(std::fabs(denom) > 1e-6)) return false;
   Eigen::Vector2d q = v;
   q.y() += (l / denom) * u_tau.dot(v);
-  const Eigen::Vector3d u = rotateByExp(tau * m.angular, G.transpose() * q);  // E^T = Exp(w tau)
+  const Eigen::Vector3d u = rotateByExp(-phi, coefficients, G.transpose() * q);  // E^T
   out.camera.head<3>() = a.cross(u);
   out.camera.tail<3>() = u;
   out.point = c.R_cw.transpose() * u;
-  out.motion.head<3>() = -tau * (rightJacobianSo3(-tau * m.angular).transpose() * y.cross(u));
+  out.motion.head<3>() = -tau * rightJacobianSo3TransposeTimes(phi, coefficients, y.cross(u));
   out.motion.tail<3>() = -tau * out.point;
   out.intrinsics = J_intr0.transpose() * q;
   out.line_delay = u_tau.dot(q) * (uv.y() - shutter.reference_row);
@@ -363,7 +383,7 @@ RollingShutterMotion BundleAdjuster::trajectoryMotion(std::span<const BaCamera> 
 
 void BundleAdjuster::updateTrajectoryMotions(std::span<const BaCamera> cameras) {
   for (std::size_t c = 0; c < cameras.size(); ++c)
-    motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), nullptr);
+    motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), &motion_D_[c]);
 }
 
 Eigen::Matrix<double, 6, 1> BundleAdjuster::motionPriorResidual(std::size_t c) const {
@@ -406,12 +426,14 @@ double BundleAdjuster::evaluateCost(std::span<const BaCamera> cameras,
   }
   if (rms != nullptr)
     *rms = observations.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(observations.size()));
-  if (rs) {
-    // The motion prior of the free cameras (0.5 |prior x (motion - mean)|^2, as the residuals).
-    const double prior2 = velocity_prior_ * velocity_prior_;
-    for (std::size_t c = 0; c < motions_.size(); ++c)
-      if (camera_slot_[c] >= 0) cost += 0.5 * prior2 * motionPriorResidual(c).squaredNorm();
-  }
+  return rs ? addMotionPriorCost(cost) : cost;
+}
+
+double BundleAdjuster::addMotionPriorCost(double cost) const {
+  // The motion prior of the free cameras (0.5 |prior x (motion - mean)|^2, as the residuals).
+  const double prior2 = velocity_prior_ * velocity_prior_;
+  for (std::size_t c = 0; c < motions_.size(); ++c)
+    if (camera_slot_[c] >= 0) cost += 0.5 * prior2 * motionPriorResidual(c).squaredNorm();
   return cost;
 }
 
@@ -689,73 +711,27 @@ bool BundleAdjuster::trajectoryObservationJacobian(std::span<const BaCamera> cam
   return true;
 }
 
-bool BundleAdjuster::trajectoryObservationGradient(std::span<const BaCamera> cameras,
-                                                   std::span<const Eigen::Vector3d> points,
-                                                   std::span<const BaObservation> observations,
-                                                   int i, const BaIntrinsics& k,
-                                                   const BundleAdjustmentOptions& options,
-                                                   const Layout& L,
-                                                   TrajectoryObservationGradient& out) const {
-  const BaObservation& o = observations[static_cast<std::size_t>(i)];
-  const auto ci = static_cast<std::size_t>(o.camera);
-  const Eigen::Vector3d& X = points[static_cast<std::size_t>(o.point)];
-  Eigen::Vector2d uv;
-  double tau = 0.0;
-  double& row = row_[static_cast<std::size_t>(i)];
-  const bool seen = projectRollingShutter(cameras[ci], motions_[ci], shutter_, k, X, uv, tau, row);
-  row = seen ? uv.y() : kNoRow;
-  if (!seen) return false;
-  const Eigen::Vector2d r = uv - o.xy;
-  RollingShutterGradient gr;
-  if (!rollingShutterGradient(cameras[ci], motions_[ci], shutter_, k, X, tau,
-                              huberWeight(r.norm(), options.huber_px) * r, gr))
-    return false;
-  // The motion is the trajectory's (trajectoryObservationJacobian): D^T onto the three poses.
-  const Eigen::Matrix<double, 18, 1> gD = motion_D_[ci].transpose() * gr.motion;
-  out.g[0] = gD.segment<6>(0);
-  out.g[1] = gr.camera + gD.segment<6>(6);
-  out.g[2] = gD.segment<6>(12);
-  for (int j = 0; j < L.nk; ++j)
-    out.gk(j) = L.kcol[j] == 3 ? gr.line_delay : gr.intrinsics(L.kcol[j]);
-  out.gp = gr.point;
-  trajectorySlots(o.camera, out.slot);
-  return true;
-}
-
 void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
                                          std::span<const Eigen::Vector3d> points,
                                          std::span<const BaObservation> observations,
                                          const BaIntrinsics& k,
-                                         const BundleAdjustmentOptions& options, const Layout& L,
-                                         bool gradient_only) {
+                                         const BundleAdjustmentOptions& options, const Layout& L) {
   const int n = L.n, np = L.np, no = L.no, nk = L.nk, k0 = L.k0;
   Eigen::MatrixXd& H = S_;
-  if (!gradient_only) H.topLeftCorner(n, n).setZero();
+  H.topLeftCorner(n, n).setZero();
   Eigen::VectorXd& g = rhs_;
   g.head(n).setZero();
   for (int p = 0; p < np; ++p) {
     gp_[static_cast<std::size_t>(p)].setZero();
-    if (gradient_only) continue;
     V_[static_cast<std::size_t>(p)].setZero();
     for (int e = pair_begin_[static_cast<std::size_t>(p)];
          e < pair_end_[static_cast<std::size_t>(p)]; ++e)
       pair_Wc_[static_cast<std::size_t>(e)].setZero();
   }
-  for (std::size_t c = 0; c < cameras.size(); ++c)
-    motions_[c] = trajectoryMotion(cameras, neighbours_[c], static_cast<int>(c), &motion_D_[c]);
+  updateTrajectoryMotions(cameras);
   for (int i = 0; i < no; ++i) {
     const auto ii = static_cast<std::size_t>(i);
     const auto pi = static_cast<std::size_t>(observations[ii].point);
-    if (gradient_only) {
-      TrajectoryObservationGradient og;
-      if (!trajectoryObservationGradient(cameras, points, observations, i, k, options, L, og))
-        continue;
-      for (int a = 0; a < 3; ++a)
-        if (og.slot[a] >= 0) g.segment<6>(og.slot[a]) += og.g[a];
-      if (nk > 0) g.segment(k0, nk) += og.gk.head(nk);
-      gp_[pi] += og.gp;
-      continue;
-    }
     Wk_[ii].setZero();
     TrajectoryObservationJacobian oj;
     if (!trajectoryObservationJacobian(cameras, points, observations[ii], k, options, L, oj))
@@ -787,12 +763,70 @@ void BundleAdjuster::linearizeTrajectory(std::span<const BaCamera> cameras,
     V_[pi] += w * Jp.transpose() * Jp;
     gp_[pi] += w * Jp.transpose() * r;
   }
-  if (gradient_only) return;
   if (nk > 0) {
     for (int c = 0; c < k0; ++c)
       for (int j = 0; j < nk; ++j) H(k0 + j, c) = H(c, k0 + j);
   }
   for (int i = 0; i < n; ++i) diag_(i) = H(i, i);
+}
+
+double BundleAdjuster::trajectoryCostAndGradient(std::span<const BaCamera> cameras,
+                                                 std::span<const Eigen::Vector3d> points,
+                                                 std::span<const BaObservation> observations,
+                                                 const BaIntrinsics& k,
+                                                 const BundleAdjustmentOptions& options,
+                                                 const Layout& L, double* rms) {
+  const int nk = L.nk, k0 = L.k0;
+  rhs_.head(L.n).setZero();
+  for (int p = 0; p < L.np; ++p) gp_[static_cast<std::size_t>(p)].setZero();
+  for (int c = 0; c < L.nc; ++c) {
+    camera_gradient_[static_cast<std::size_t>(c)].setZero();
+    motion_gradient_[static_cast<std::size_t>(c)].setZero();
+  }
+  double cost = 0.0;
+  double sq = 0.0;
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    const BaObservation& o = observations[i];
+    const auto ci = static_cast<std::size_t>(o.camera);
+    const Eigen::Vector3d& X = points[static_cast<std::size_t>(o.point)];
+    Eigen::Vector2d uv;
+    double tau = 0.0;
+    const bool seen =
+        projectRollingShutter(cameras[ci], motions_[ci], shutter_, k, X, uv, tau, row_[i]);
+    row_[i] = seen ? uv.y() : kNoRow;
+    if (!seen) {
+      cost += 1e6;  // as evaluateCost
+      sq += 1e6;
+      continue;
+    }
+    const Eigen::Vector2d r = uv - o.xy;
+    const double e = r.norm();
+    cost += huberCost(e, options.huber_px);
+    sq += e * e;
+    RollingShutterGradient gr;
+    if (!rollingShutterGradient(cameras[ci], motions_[ci], shutter_, k, X, tau,
+                                huberWeight(e, options.huber_px) * r, gr))
+      continue;
+    camera_gradient_[ci] += gr.camera;
+    motion_gradient_[ci] += gr.motion;
+    for (int j = 0; j < nk; ++j)
+      rhs_(k0 + j) += L.kcol[j] == 3 ? gr.line_delay : gr.intrinsics(L.kcol[j]);
+    gp_[static_cast<std::size_t>(o.point)] += gr.point;
+  }
+  // The motion is the trajectory's, linear in its camera's observations' pulls: D^T once per
+  // camera onto its previous, own and next pose (trajectoryObservationJacobian).
+  for (int c = 0; c < L.nc; ++c) {
+    const auto cc = static_cast<std::size_t>(c);
+    const Eigen::Matrix<double, 18, 1> gD = motion_D_[cc].transpose() * motion_gradient_[cc];
+    int slot[3];
+    trajectorySlots(c, slot);
+    if (slot[0] >= 0) rhs_.segment<6>(slot[0]) += gD.segment<6>(0);
+    if (slot[1] >= 0) rhs_.segment<6>(slot[1]) += camera_gradient_[cc] + gD.segment<6>(6);
+    if (slot[2] >= 0) rhs_.segment<6>(slot[2]) += gD.segment<6>(12);
+  }
+  if (rms != nullptr)
+    *rms = observations.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(observations.size()));
+  return addMotionPriorCost(cost);
 }
 
 bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vector3d> points,
@@ -801,7 +835,7 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
                                const BundleAdjustmentOptions& options, const Layout& L,
                                double& cost, double& rms, double& step2) {
   const int n = L.n, np = L.np;
-  linearizeTrajectory(cameras, points, observations, k, options, L, true);
+  if (!gradient_current_) trajectoryCostAndGradient(cameras, points, observations, k, options, L);
   formReducedRhs(points_fixed, L);  // with the last form's W and V^-1
   auto dc = delta_.head(n);
   dc = b_.head(n);
@@ -813,14 +847,17 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
   // The frozen Hessian may overshoot where the Huber weights moved: the step, then half of it.
   for (int halving = 0; halving < 2; ++halving) {
     applyStep(cameras, points, k, L);
+    // The trial's cost and, from the same projections, its gradient: the next chord step's.
     double new_rms = 0.0;
     const double new_cost =
-        evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
+        trajectoryCostAndGradient(cameras, points, observations, k, options, L, &new_rms);
     if (std::isfinite(new_cost) && new_cost < cost) {
       cost = new_cost;
       rms = new_rms;
+      gradient_current_ = true;
       return true;
     }
+    gradient_current_ = false;
     undoStep(cameras, points);
     k = k_backup_;
     dc *= 0.5;
@@ -1105,6 +1142,7 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
   };
   // A_ holds the Cholesky factor of the last full iteration's reduced system (chord steps).
   bool factor_ready = false;
+  gradient_current_ = false;  // rhs_ and gp_ hold no trial's gradient yet
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     summary.iterations = iter + 1;
     if (factor_ready) {
@@ -1120,6 +1158,7 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
       }
       factor_ready = false;  // the frozen Hessian no longer leads down: a full iteration
     }
+    gradient_current_ = false;  // this iteration's step moves away from the gradient's point
     if (L.traj)
       linearizeTrajectory(cameras, points, observations, k, options, L);
     else
@@ -1140,16 +1179,22 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
       }
       const double step2 = backSubstitute(observations, points_fixed, L);
       applyStep(cameras, points, k, L);
+      // With chord steps to follow, the trial's gradient comes with its cost (the first chord
+      // step's); a rejected trial's replaced the linearization point's, recomputed below.
+      const bool chords_follow = options.reuse_factorization && L.traj;
       double new_rms = 0.0;
       const double new_cost =
-          evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
+          chords_follow
+              ? trajectoryCostAndGradient(cameras, points, observations, k, options, L, &new_rms)
+              : evaluateCost(cameras, points, observations, k, options.huber_px, &new_rms);
       if (std::isfinite(new_cost) && new_cost < cost) {
         const double decrease = (cost - new_cost) / std::max(cost, 1e-300);
         cost = new_cost;
         rms = new_rms;
         lambda = std::max(lambda / 3.0, 1e-15);
         accepted = true;
-        factor_ready = options.reuse_factorization && L.traj;
+        factor_ready = chords_follow;
+        gradient_current_ = chords_follow;
         if (converged(decrease, step2)) {
           summary.status = Status::kConverged;
           stop = true;
@@ -1157,6 +1202,7 @@ BundleAdjustmentSummary BundleAdjuster::solveImpl(std::span<BaCamera> cameras,
       } else {
         undoStep(cameras, points);
         k = k_backup_;
+        if (chords_follow) trajectoryCostAndGradient(cameras, points, observations, k, options, L);
         lambda *= 4.0;
         if (lambda > 1e12 || grad_norm < 1e-14) {
           summary.status = Status::kConverged;  // no step improves: at a minimum

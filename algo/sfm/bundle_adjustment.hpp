@@ -275,13 +275,19 @@ class BundleAdjuster {
                  std::span<const BaObservation> observations, const BaIntrinsics& k,
                  const BundleAdjustmentOptions& options, const Layout& L);
   /// linearize for the smooth-trajectory model (pair_Wc_ accumulated per merged entry).
-  /// With `gradient_only`, the gradients g_c and g_p alone (U, V and W keep the values of the
-  /// last full linearization: the chord step's).
   void linearizeTrajectory(std::span<const BaCamera> cameras,
                            std::span<const Eigen::Vector3d> points,
                            std::span<const BaObservation> observations, const BaIntrinsics& k,
-                           const BundleAdjustmentOptions& options, const Layout& L,
-                           bool gradient_only = false);
+                           const BundleAdjustmentOptions& options, const Layout& L);
+  /// The smooth-trajectory model's cost at the current parameters (as evaluateCost) and, from
+  /// the same projections, the gradients g_c and g_p alone (rhs_, gp_; U, V and W keep the last
+  /// full linearization's: the chord step's). The pulls on each camera's motion are summed per
+  /// camera, then carried onto its three poses by motion_D_ once.
+  double trajectoryCostAndGradient(std::span<const BaCamera> cameras,
+                                   std::span<const Eigen::Vector3d> points,
+                                   std::span<const BaObservation> observations,
+                                   const BaIntrinsics& k, const BundleAdjustmentOptions& options,
+                                   const Layout& L, double* rms = nullptr);
   /// The reduced system's right-hand side b_ from the gradients (rhs_, gp_) and the last form's
   /// W, V^-1: formReducedSystem's, and the chord step's with a new gradient.
   void formReducedRhs(std::span<const uint8_t> points_fixed, const Layout& L);
@@ -313,20 +319,6 @@ class BundleAdjuster {
                                      const BaObservation& o, const BaIntrinsics& k,
                                      const BundleAdjustmentOptions& options, const Layout& L,
                                      TrajectoryObservationJacobian& out) const;
-  /// The gradient part of an observation of the smooth-trajectory model: its weighted residual
-  /// pulled back onto the previous, own and next camera's pose (g, at `slot`), the refined
-  /// intrinsics (gk, `Layout::kcol` order) and the point (gp); false: not projected.
-  struct TrajectoryObservationGradient {
-    Eigen::Matrix<double, 6, 1> g[3];
-    int slot[3] = {-1, -1, -1};
-    Eigen::Vector4d gk = Eigen::Vector4d::Zero();
-    Eigen::Vector3d gp = Eigen::Vector3d::Zero();
-  };
-  bool trajectoryObservationGradient(std::span<const BaCamera> cameras,
-                                     std::span<const Eigen::Vector3d> points,
-                                     std::span<const BaObservation> observations, int i,
-                                     const BaIntrinsics& k, const BundleAdjustmentOptions& options,
-                                     const Layout& L, TrajectoryObservationGradient& out) const;
   /// The line delay's variance from the scatter of each point's pull on it (the cluster-robust
   /// sandwich, one cluster per point): `u` = A^-1 e_readout on the reduced system.
   double lineDelayClusterVariance(std::span<const BaCamera> cameras,
@@ -335,7 +327,8 @@ class BundleAdjuster {
                                   std::span<const BaObservation> observations,
                                   const BaIntrinsics& k, const BundleAdjustmentOptions& options,
                                   const Layout& L, const Eigen::Ref<const Eigen::VectorXd>& u);
-  /// The trajectory's motions of every camera from the current poses (into motions_).
+  /// The trajectory's motions of every camera from the current poses (into motions_, their
+  /// derivatives into motion_D_).
   void updateTrajectoryMotions(std::span<const BaCamera> cameras);
   /// The line delay's standard errors at the current parameters (after the iterations), into
   /// `summary` (line_delay_std_error and line_delay_std_error_independent).
@@ -377,11 +370,17 @@ class BundleAdjuster {
   std::span<const RollingShutterMotion> motion_prior_mean_;
   /// The motion prior's residual of camera c: its motion less the prior's mean.
   [[nodiscard]] Eigen::Matrix<double, 6, 1> motionPriorResidual(std::size_t c) const;
+  /// `cost` plus the motion prior's cost of the free cameras.
+  [[nodiscard]] double addMotionPriorCost(double cost) const;
   std::vector<RollingShutterMotion> motions_backup_;
   // The smooth-trajectory solve in progress (empty: not that model).
   std::span<const BaTrajectoryNeighbours> neighbours_;
   std::vector<Eigen::Matrix<double, 6, 18>> motion_D_;  // per camera d motion / d poses
   std::vector<std::array<int, 3>> obs_entry_;           // per observation its merged pair entries
+  // trajectoryCostAndGradient's per-camera sums of the pulls on the pose and on the motion.
+  std::vector<Eigen::Matrix<double, 6, 1>> camera_gradient_;
+  std::vector<Eigen::Matrix<double, 6, 1>> motion_gradient_;
+  bool gradient_current_ = false;  // rhs_ and gp_ hold the gradient at the current parameters
   double line_delay_backup_ = 0.0;
   std::vector<Eigen::Matrix<double, 6, 3>> Wv_;  // per observation J_motion^T W J_p
   std::vector<int> pair_begin_;                  // per point, its first pair entry

@@ -159,7 +159,7 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
                    std::vector<RollingShutterMotion>& motions,
                    const RollingShutterRefinementOptions& options, const Workspace& w,
                    std::span<const RollingShutterMotion> targets, double prior,
-                   RollingShutterRefinementResult& result) {
+                   RollingShutterRefinementResult& result, double* initial_rms_px = nullptr) {
   std::vector<int> camera_of_frame(frames.size(), -1);
   std::vector<BaCamera> cameras;
   std::vector<uint8_t> fixed;
@@ -176,6 +176,7 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
   std::vector<int> ba_point(points.size(), -1);
   std::vector<Eigen::Vector3d> X;
   std::vector<BaObservation> observations;
+  double sum2 = 0.0;  // of the kept observations' reprojection errors (reprojectionRms's)
   for (const auto& o : tracks.observations()) {
     const int p = w.point_of_track[static_cast<std::size_t>(o.track)];
     const int c = camera_of_frame[static_cast<std::size_t>(o.frame)];
@@ -183,9 +184,11 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
     const auto px = projectRollingShutter(
         K, shutter, frames[static_cast<std::size_t>(o.frame)].pose,
         motions[static_cast<std::size_t>(o.frame)], points[static_cast<std::size_t>(p)].X);
+    const double e2 = (px.px - Eigen::Vector2d(o.x, o.y)).squaredNorm();
     if (px.status != RollingShutterProjection::kOk ||
-        (px.px - Eigen::Vector2d(o.x, o.y)).norm() > options.reproj_threshold_px)
+        e2 > options.reproj_threshold_px * options.reproj_threshold_px)
       continue;
+    sum2 += e2;
     int& b = ba_point[static_cast<std::size_t>(p)];
     if (b < 0) {
       b = static_cast<int>(X.size());
@@ -193,6 +196,9 @@ void adjustJointly(const TrackTable& tracks, CameraIntrinsics& K, const RollingS
     }
     observations.push_back({c, b, Eigen::Vector2d(o.x, o.y)});
   }
+  if (initial_rms_px != nullptr)
+    *initial_rms_px =
+        observations.empty() ? 0.0 : std::sqrt(sum2 / static_cast<double>(observations.size()));
   if (cameras.size() < 2 || observations.size() < 20) return;
   BundleAdjuster ba(
       static_cast<int>(cameras.size()), static_cast<int>(X.size()),
@@ -257,19 +263,21 @@ RollingShutterRefinementResult refineRollingShutter(
   for (std::size_t p = 0; p < points.size(); ++p)
     if (points[p].valid && points[p].track >= 0)
       w.point_of_track[static_cast<std::size_t>(points[p].track)] = static_cast<int>(p);
-  result.rms_before_px =
-      reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
   result.line_delay = shutter.line_delay;
   if (options.smooth_trajectory) {
     // The global-shutter poses are the middle rows' to within the rows' error; the motions follow
-    // from them, so the adjustment starts directly. The rms after uses the readout found.
-    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, {}, 0.0, result);
+    // from them, so the adjustment starts directly (the rms before from its selection of the
+    // observations: the same projections). The rms after uses the readout found.
+    adjustJointly(tracks, K, shutter, frames, points, motions, options, w, {}, 0.0, result,
+                  &result.rms_before_px);
     RollingShutter found = shutter;
     found.line_delay = result.line_delay;
     result.rms_after_px =
         reprojectionRms(tracks, K, found, frames, points, motions, w, options.reproj_threshold_px);
     return result;
   }
+  result.rms_before_px =
+      reprojectionRms(tracks, K, shutter, frames, points, motions, w, options.reproj_threshold_px);
   for (int round = 0; round < options.rounds; ++round) {
     result.frames = resectFrames(tracks, K, shutter, frames, points, motions, options, w);
     result.points = intersectPoints(tracks, K, shutter, frames, points, motions, options, w);

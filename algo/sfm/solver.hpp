@@ -117,6 +117,11 @@ struct SolverOptions {
   /// readout_min_frames.
   bool estimate_readout = false;
   double readout_min_frames = 0.03;  ///< 1 ms at 30 fps
+  /// The final (global) adjustments stop once a step lowers the cost by less than this fraction.
+  /// 1e-6: on the 340-frame orbit the figures are equal to 5 digits and the final adjustments take
+  /// 0.28 s instead of 0.59 (the adjuster's default 1e-10 ran all 30 iterations). A solve whose
+  /// result is only a start, such as the rolling-shutter refinement's, may stop earlier.
+  double final_function_tolerance = 1e-6;
 };
 
 /// Why a frame has no camera (SolvedFrame::unsolved), judged after the solve from what the

@@ -240,10 +240,7 @@ void Solver::adjust(bool global, bool measure_centres) {
   BundleAdjustmentOptions bo;
   bo.huber_px = huber;
   bo.max_iterations = global ? 30 : 8;
-  // Global adjustments stop once a step lowers the cost by less than a millionth: on the
-  // 340-frame orbit the figures are equal to 5 digits and the final adjustments take 0.28 s
-  // instead of 0.59 (the default 1e-10 ran all 30 iterations).
-  if (global) bo.function_tolerance = 1e-6;
+  if (global) bo.function_tolerance = options_.final_function_tolerance;
   bo.refine_focal =
       global && ((focal_source_ == FocalSource::kSelfCalibrated) ||
                  (focal_source_ == FocalSource::kGiven && options_.refine_given_focal) ||

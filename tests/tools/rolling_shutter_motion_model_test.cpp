@@ -26,12 +26,13 @@ Eigen::Vector3d logSo3(const Eigen::Matrix3d& R) {
 struct ModelErrors {
   double central = 0.0;        // constant velocity, central difference of the neighbours
   double true_velocity = 0.0;  // constant velocity, the trajectory's own at the frame time
+  double quadratic = 0.0;      // velocity and acceleration through the poses of f-1, f, f+1
   double quartic = 0.0;        // interpolation through the poses of frames f-2 ... f+2
 };
 
 // RMS over frames 3 ... frames-4 of the rotation error at the rows, pixels at `focal`.
 ModelErrors modelErrors(const synth::TrajectoryParams& p, double focal) {
-  double sum_central = 0.0, sum_true = 0.0, sum_quartic = 0.0;
+  double sum_central = 0.0, sum_true = 0.0, sum_quadratic = 0.0, sum_quartic = 0.0;
   int n = 0;
   for (int f = 3; f + 3 < p.frames; ++f) {
     const Eigen::Matrix3d R_f = synth::trajectoryPose(p, f).R_wc;
@@ -40,6 +41,7 @@ ModelErrors modelErrors(const synth::TrajectoryParams& p, double focal) {
       return logSo3(R_f.transpose() * synth::trajectoryPose(p, t).R_wc);
     };
     const Eigen::Vector3d central = 0.5 * (rel(f + 1) - rel(f - 1));
+    const Eigen::Vector3d second = rel(f + 1) + rel(f - 1);  // the second difference; rel(f) = 0
     constexpr double h = 1e-4;
     const Eigen::Vector3d velocity = (rel(f + h) - rel(f - h)) / (2.0 * h);
     for (const double tau : {-0.45, -0.225, 0.225, 0.45}) {
@@ -57,11 +59,13 @@ ModelErrors modelErrors(const synth::TrajectoryParams& p, double focal) {
       };
       sum_central += sq(central * tau);
       sum_true += sq(velocity * tau);
+      sum_quadratic += sq(central * tau + 0.5 * second * tau * tau);
       sum_quartic += sq(quartic);
       ++n;
     }
   }
-  return {std::sqrt(sum_central / n), std::sqrt(sum_true / n), std::sqrt(sum_quartic / n)};
+  return {std::sqrt(sum_central / n), std::sqrt(sum_true / n), std::sqrt(sum_quadratic / n),
+          std::sqrt(sum_quartic / n)};
 }
 
 }  // namespace
@@ -80,15 +84,21 @@ TEST_CASE("Within a readout, hand shake outruns a constant velocity, a smooth or
   const ModelErrors o = modelErrors(orbit, 600.0);
   std::printf(
       "rows' rotation error of the within-readout motion models (0.9-frame readout, focal 600, "
-      "RMS px): shake: central difference %.3f, true velocity %.3f, quartic through 5 frames "
-      "%.3f; fast orbit: %.4f, %.4f, %.4f\n",
-      s.central, s.true_velocity, s.quartic, o.central, o.true_velocity, o.quartic);
+      "RMS px): shake: central difference %.3f, true velocity %.3f, quadratic through 3 frames "
+      "%.3f, quartic through 5 frames %.3f; fast orbit: %.4f, %.4f, %.4f, %.4f\n",
+      s.central, s.true_velocity, s.quadratic, s.quartic, o.central, o.true_velocity, o.quadratic,
+      o.quartic);
   // The shake's jitter (bands to 8 Hz at 30 fps) changes its velocity within a readout: even the
   // exact velocity leaves more than the tracks' noise, the central difference more still.
   CHECK(s.true_velocity > 0.5);
   CHECK(s.central > s.true_velocity);
   CHECK(s.quartic < 0.5 * s.true_velocity);  // a model through more poses follows it
+  // An acceleration from the same three poses (the second difference) is not enough: the jitter's
+  // acceleration changes within the readout too; the neighbours' neighbours are needed.
+  CHECK(s.quadratic < s.central);
+  CHECK(s.quadratic > 2.0 * s.quartic);
   // The orbit turns smoothly: the constant velocity is exact to a hundredth of a pixel.
   CHECK(o.central < 0.05);
   CHECK(o.true_velocity < 0.05);
+  CHECK(o.quadratic < 0.005);
 }

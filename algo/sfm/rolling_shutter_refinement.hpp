@@ -26,6 +26,14 @@ namespace epitrack {
 /// cameras are the same (docs/rolling-shutter.md "Solve time").
 inline constexpr double kRefinementStartTolerance = 1e-4;
 
+/// The options of a general solve on tracks moved to their reference-row times (a given readout
+/// of `readout_frames` frame intervals) whose result the refinement then takes over: the readout
+/// and the refinement's start tolerance (epitrack-solve --readout-ms and its bench).
+inline void solveForRefinement(SolverOptions& so, double readout_frames) {
+  so.readout_frames = readout_frames;
+  so.final_function_tolerance = kRefinementStartTolerance;
+}
+
 struct RollingShutterRefinementOptions {
   int rounds = 1;                    ///< resection + intersection alternations
   double reproj_threshold_px = 2.5;  ///< observations beyond this are left out of both steps

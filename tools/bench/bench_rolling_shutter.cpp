@@ -69,8 +69,7 @@ RollingSolveRun solveClip(const TrackTable& tracks, int width, int height, doubl
   TrackTable reference_row_tracks;
   const bool rolling = readout_frames > 0.0;
   if (rolling) {
-    so.readout_frames = readout_frames;
-    so.final_function_tolerance = kRefinementStartTolerance;  // as epitrack-solve --readout-ms
+    solveForRefinement(so, readout_frames);  // as epitrack-solve --readout-ms
     shiftTracksToReferenceRow(tracks, shutter, reference_row_tracks);
   }
   Solver solver(rolling ? reference_row_tracks : tracks, width, height, so);

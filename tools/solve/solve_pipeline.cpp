@@ -315,10 +315,9 @@ const TrackTable& solverTracks(SolveRun& run) {
   run.so.estimate_readout = run.o.readout_auto;
   run.so.readout_min_frames = 0.001 * clipFps(run);
   if (!(run.o.readout_ms > 0.0)) return run.tracks;
-  run.so.readout_frames = run.o.readout_ms * clipFps(run) / 1000.0;
   // The global-shutter solve on these tracks is only the refinement's start. Not with --readout
   // auto: its global-shutter solve is written as it is when no readout is found.
-  run.so.final_function_tolerance = kRefinementStartTolerance;
+  solveForRefinement(run.so, run.o.readout_ms * clipFps(run) / 1000.0);
   shiftTracksToReferenceRow(
       run.tracks,
       RollingShutter::fromReadout(run.so.readout_frames, run.height, 0.5 * (run.height - 1)),

@@ -849,8 +849,9 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
   factor.transpose().solveInPlace(dc);
   if (!dc.allFinite()) return false;
   step2 = backSubstitute(observations, points_fixed, L);
-  // The frozen Hessian may overshoot where the Huber weights moved: the step, then half of it.
-  for (int halving = 0; halving < 2; ++halving) {
+  // The frozen Hessian may overshoot where the Huber weights moved: the step, then up to three
+  // halvings of it (a halved trial is one pass, cheaper than forming the system again).
+  for (int halving = 0; halving < 4; ++halving) {
     applyStep(cameras, points, k, L);
     // The trial's cost and, from the same projections, its gradient: the next chord step's.
     double new_rms = 0.0;

@@ -851,7 +851,8 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
   step2 = backSubstitute(observations, points_fixed, L);
   // The frozen Hessian may overshoot where the Huber weights moved: the step, then up to three
   // halvings of it (a halved trial is one pass, cheaper than forming the system again).
-  for (int halving = 0; halving < 4; ++halving) {
+  constexpr int kChordTrials = 4;
+  for (int trial = 0; trial < kChordTrials; ++trial) {
     applyStep(cameras, points, k, L);
     // The trial's cost and, from the same projections, its gradient: the next chord step's.
     double new_rms = 0.0;
@@ -866,6 +867,7 @@ bool BundleAdjuster::chordStep(std::span<BaCamera> cameras, std::span<Eigen::Vec
     gradient_current_ = false;
     undoStep(cameras, points);
     k = k_backup_;
+    if (trial + 1 == kChordTrials) break;  // no step left to try: the caller forms the system
     dc *= 0.5;
     for (int p = 0; p < np; ++p) dp_[static_cast<std::size_t>(p)] *= 0.5;
     step2 *= 0.25;

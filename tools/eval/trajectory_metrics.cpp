@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/SVD>
 
@@ -13,6 +14,55 @@ double angleDeg(const Eigen::Matrix3d& R) {
   // acos loses precision near 0; use atan2 of the axis part instead.
   const Eigen::Vector3d w(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
   return std::atan2(0.5 * w.norm(), c) * 180.0 / 3.14159265358979323846;
+}
+
+// The rotation nearest (Frobenius) to `sum`, a sum of rotations: their chordal L2 mean
+// (Hartley et al. 2013, "Rotation averaging", sec. 5.3); identity when `sum` is degenerate.
+Eigen::Matrix3d chordalMeanRotation(const Eigen::Matrix3d& sum) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
+  const Eigen::Matrix3d R = svd.matrixU() * D * svd.matrixV().transpose();
+  return R.allFinite() ? R : Eigen::Matrix3d::Identity();
+}
+
+// Mean and largest angle between each ground-truth orientation and the aligned estimate's.
+void rotationErrors(
+    const std::vector<std::pair<const hal::TrajectoryEntry*, const hal::TrajectoryEntry*>>& pairs,
+    const Eigen::Matrix3d& R_align, double& mean_deg, double& max_deg) {
+  double sum = 0.0;
+  max_deg = 0.0;
+  for (const auto& [g, e] : pairs) {
+    const double a = angleDeg(g->rotation.toRotationMatrix().transpose() * R_align *
+                              e->rotation.toRotationMatrix());
+    sum += a;
+    max_deg = std::max(max_deg, a);
+  }
+  mean_deg = sum / static_cast<double>(pairs.size());
+}
+
+// RMSE of the centres under the rotation R with the least-squares scale and translation for it
+// (Umeyama's eq. 42 with R fixed).
+double centreRmseForRotation(const std::vector<Eigen::Vector3d>& source,
+                             const std::vector<Eigen::Vector3d>& target, const Eigen::Matrix3d& R) {
+  const double n = static_cast<double>(source.size());
+  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mu_t = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    mu_s += source[i] / n;
+    mu_t += target[i] / n;
+  }
+  double cross = 0.0;
+  double var_s = 0.0;
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    cross += (target[i] - mu_t).dot(R * (source[i] - mu_s));
+    var_s += (source[i] - mu_s).squaredNorm();
+  }
+  const double s = var_s > 0.0 ? std::max(0.0, cross / var_s) : 0.0;
+  double sq = 0.0;
+  for (std::size_t i = 0; i < source.size(); ++i)
+    sq += (s * (R * (source[i] - mu_s)) - (target[i] - mu_t)).squaredNorm();
+  return std::sqrt(sq / n);
 }
 
 }  // namespace
@@ -139,29 +189,22 @@ bool evaluateTrajectory(const std::vector<hal::TrajectoryEntry>& gt,
     S.s = ns > 0.0 ? nd / ns : 1.0;
     // The centres do not fix the rotation (a tripod, a straight line): take it from the camera
     // orientations instead, the chordal mean of R_gt,i R_est,iᵀ projected onto SO(3).
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(orientation_sum,
-                                                Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-    if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
-    S.R = svd.matrixU() * D * svd.matrixV().transpose();
-    if (!S.R.allFinite()) S.R.setIdentity();
+    S.R = chordalMeanRotation(orientation_sum);
     S.t = md - S.s * S.R * ms;
   }
   m.scale = S.s;
   double sq = 0.0;
-  double rot_sum = 0.0;
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const double e = (S.apply(src[i]) - dst[i]).norm();
     sq += e * e;
     m.ate_max = std::max(m.ate_max, e);
-    const Eigen::Matrix3d R_gt = pairs[i].first->rotation.toRotationMatrix();
-    const Eigen::Matrix3d R_est = S.R * pairs[i].second->rotation.toRotationMatrix();
-    const double a = angleDeg(R_gt.transpose() * R_est);
-    rot_sum += a;
-    m.rot_err_deg_max = std::max(m.rot_err_deg_max, a);
   }
   m.ate_rmse = std::sqrt(sq / static_cast<double>(pairs.size()));
-  m.rot_err_deg_mean = rot_sum / static_cast<double>(pairs.size());
+  rotationErrors(pairs, S.R, m.rot_err_deg_mean, m.rot_err_deg_max);
+  const Eigen::Matrix3d R_orient = chordalMeanRotation(orientation_sum);
+  rotationErrors(pairs, R_orient, m.rot_err_deg_mean_orient_aligned,
+                 m.rot_err_deg_max_orient_aligned);
+  m.ate_rmse_orient_aligned = centreRmseForRotation(src, dst, R_orient);
   double rpe_sum = 0.0;
   double rpe_rot = 0.0;
   for (std::size_t i = 0; i + 1 < pairs.size(); ++i) {

@@ -49,6 +49,16 @@ struct TrajectoryMetrics {
   double scale = 1.0;             ///< s of the alignment (GT units per estimate unit)
   double rot_err_deg_mean = 0.0;  ///< mean angle of R_gt^T (R_align R_est)
   double rot_err_deg_max = 0.0;
+  /// The second alignment: the rotation is the orientations' own best (the chordal mean of
+  /// R_gt,i R_est,iᵀ), the scale and translation the centres' least squares for it. On a thin
+  /// path (a walk, a dolly) the centres fix the rotation about the path's long axis only through
+  /// their narrow spread across it, where millimetres of error tilt it by degrees: when these two
+  /// figures are both small, one similarity fits orientations and centres together and a larger
+  /// rot_err_deg_mean is the position alignment's. Alone, rot_err_deg_*_orient_aligned is blind
+  /// to every orientation turned the same way against the path, which rot_err_deg_* sees.
+  double rot_err_deg_mean_orient_aligned = 0.0;
+  double rot_err_deg_max_orient_aligned = 0.0;
+  double ate_rmse_orient_aligned = 0.0;  ///< GT units, as ate_rmse
   double rpe_trans_rel = 0.0;     ///< sum over consecutive matched pairs of |relative translation
                                   ///< error| / sum of GT steps
   double rpe_rot_deg_mean = 0.0;  ///< mean angle error of the relative rotations

@@ -24,6 +24,18 @@ struct SolverOptions {
   double cx = 0.0, cy = 0.0;
   double aspect = 1.0;
   int refine_distortion = 0;  ///< 0 none, 1 k1, 2 k1 and k2 (estimated in the final adjustment)
+  /// With refine_distortion 0 and no given distortion: try k1 and k2 in one more final
+  /// adjustment and keep them when the lens shows (Solver::adjustDetectingDistortion): an
+  /// unmodelled lens otherwise bends into the focal and the path (k1 = -0.2 at 640x480: focal +42
+  /// %).
+  bool detect_distortion = false;
+  /// detect_distortion keeps k1, k2 when they move some pixel of the image by at least this much
+  /// (the largest displacement over the radii of the image)...
+  double detect_distortion_min_px = 2.0;
+  /// ...and lower the median reprojection error of the adjusted cameras by at least this
+  /// fraction. On undistorted clips k1, k2 come out moving pixels by 0.6 px at most and lower
+  /// the median by 0-4 %; a k1 of -0.2 moves the corners by 31 px and lowers it by 82 %.
+  double detect_distortion_min_drop = 0.2;
   bool refine_given_focal = false;
   double fallback_focal_widths =
       1.2;  ///< focal when it is neither given nor observable (x max(w, h))
@@ -295,6 +307,15 @@ struct SolverSummary {
   /// those the matches contradict (worst first).
   int view_pairs_checked = -1;
   std::vector<ViewPairContradiction> contradicted_pairs;
+  /// SolverOptions::detect_distortion: whether the trial ran and kept k1, k2; the largest pixel
+  /// displacement of its k1, k2 over the image; the adjusted cameras' median reprojection error
+  /// without and with them (px).
+  bool distortion_tried = false;
+  bool distortion_detected = false;
+  double distortion_trial_max_px = 0.0;
+  double distortion_trial_k1 = 0.0, distortion_trial_k2 = 0.0;  ///< the trial's lens
+  double distortion_trial_median_before_px = 0.0;
+  double distortion_trial_median_after_px = 0.0;
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -382,6 +403,12 @@ class Solver {
   /// `measure_centres` (a global adjustment): also each adjusted camera's centre uncertainty
   /// (SolvedFrame::centre_sd, for assessCentres).
   void adjust(bool global, bool measure_centres = false);
+  struct AdjustedState;
+  [[nodiscard]] AdjustedState adjustedState() const;
+  void restore(const AdjustedState& s);
+  void adjustDetectingDistortion(bool measure_centres);
+  [[nodiscard]] double adjustedMedianReprojectionPx() const;
+  [[nodiscard]] double distortionMaxDisplacementPx(double k1, double k2) const;
   bool tripodSolve();
   /// The rotation-only adjustment of the tripod solve (SolverOptions::tripod_adjustment).
   void refineTripod();
@@ -461,6 +488,11 @@ class Solver {
   FocalFallback focal_fallback_ = FocalFallback::kNone;
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
+  int distortion_terms_ = 0;  // k1 (1), k1 and k2 (2) refined by the global adjustments
+  bool distortion_tried_ = false, distortion_detected_ = false;
+  double distortion_trial_max_px_ = 0.0;
+  double distortion_trial_k1_ = 0.0, distortion_trial_k2_ = 0.0;
+  double distortion_median_before_px_ = 0.0, distortion_median_after_px_ = 0.0;
   double robust_huber_px_ = 0.0;
   double centre_sd_percent_ = -1.0;
   double centre_sd_steps_ = -1.0;

@@ -245,7 +245,7 @@ void Solver::adjust(bool global, bool measure_centres) {
       global && ((focal_source_ == FocalSource::kSelfCalibrated) ||
                  (focal_source_ == FocalSource::kGiven && options_.refine_given_focal) ||
                  (focal_source_ == FocalSource::kFallback && refine_fallback_focal_));
-  bo.refine_distortion = global ? options_.refine_distortion : 0;
+  bo.refine_distortion = global ? distortion_terms_ : 0;
   BaIntrinsics k{f_, aspect_, cx_, cy_, k1_, k2_};
   ba.solve(cams, cam_fixed, pts, {}, obs, k, bo);
   if (!std::isfinite(k.f) || k.f <= 0.0) return;

@@ -252,6 +252,20 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("ba_iterations", rec.readout_ba_iterations);
     j.endObject();
   }
+  j.key("distortion");
+  j.beginObject();
+  j.field("source", distortionSourceName(rec.distortion_source));
+  j.field("k1", k.k1);
+  j.field("k2", k.k2);
+  j.field("tried", rec.distortion_tried);
+  if (rec.distortion_tried) {
+    j.field("trial_k1", rec.distortion_trial_k1);
+    j.field("trial_k2", rec.distortion_trial_k2);
+    j.field("trial_max_displacement_px", rec.distortion_trial_max_px);
+    j.field("trial_median_before_px", rec.distortion_median_before_px);
+    j.field("trial_median_after_px", rec.distortion_median_after_px);
+  }
+  j.endObject();
   if (rec.row_misfit.frames_tested > 0) {
     const RowMisfit& m = rec.row_misfit;
     j.key("row_misfit");

@@ -46,6 +46,29 @@ inline const char* readoutSourceName(ReadoutSource source) {
   return "";
 }
 
+/// Where the lens distortion (k1, k2) of a solve comes from.
+enum class DistortionSource {
+  kNone,       ///< a pinhole camera (--distortion none, or auto found no lens)
+  kGiven,      ///< --intrinsics with k1 or k2
+  kEstimated,  ///< --distortion k1 | k1k2
+  kDetected,   ///< --distortion auto: the trial found the lens and kept its k1, k2
+};
+
+/// The summary.json name of a distortion source.
+inline const char* distortionSourceName(DistortionSource source) {
+  switch (source) {
+    case DistortionSource::kGiven:
+      return "given";
+    case DistortionSource::kEstimated:
+      return "estimated";
+    case DistortionSource::kDetected:
+      return "detected";
+    case DistortionSource::kNone:
+      break;
+  }
+  return "none";
+}
+
 /// The first `most` contradicted view pairs as "a-b (solve_inliers of best_inliers), ...": the
 /// stderr warning and the report name them alike.
 inline std::string contradictedPairsText(const std::vector<ViewPairContradiction>& pairs,
@@ -192,6 +215,15 @@ struct Reconstruction {
   /// --readout auto: the model was kept (false: the estimate was not significantly above zero,
   /// and the global-shutter solve is written unchanged).
   bool readout_applied = true;
+  /// The lens distortion's source (summary.json "distortion"): kNone (a pinhole camera),
+  /// kGiven (--intrinsics with k1 or k2), kEstimated (--distortion k1|k1k2), kDetected
+  /// (--distortion auto found the lens: the trial's figures below).
+  DistortionSource distortion_source = DistortionSource::kNone;
+  bool distortion_tried = false;         ///< --distortion auto ran its trial
+  double distortion_trial_max_px = 0.0;  ///< largest displacement of the trial's k1, k2
+  double distortion_trial_k1 = 0.0, distortion_trial_k2 = 0.0;  ///< the trial\'s lens
+  double distortion_median_before_px = 0.0;  ///< adjusted cameras' median error, pinhole
+  double distortion_median_after_px = 0.0;   ///< and with the trial's k1, k2
   /// Whether the camera model explains the rows (algo/sfm/row_misfit.hpp, computed from the
   /// residuals by io::rowMisfitOf; summary.json "row_misfit" when frames_tested > 0).
   RowMisfit row_misfit;

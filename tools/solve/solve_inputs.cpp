@@ -35,6 +35,7 @@ StageResult readGivenIntrinsics(SolveRun& run) {
     so.focal_px = o.focal_px;
   }
   so.refine_distortion = o.distortion;
+  so.detect_distortion = o.detect_distortion;
   return std::nullopt;
 }
 

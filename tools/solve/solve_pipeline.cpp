@@ -201,6 +201,25 @@ StageResult solveStages(SolveRun& run, Solver& solver) {
 // The solve as a Reconstruction (tools/export) in the scene frame, with every observation's
 // reprojection error.
 // What the solve found and how: intrinsics, focal source, status, the ranges of solved frames.
+// summary.json "distortion": where k1, k2 come from, and --distortion auto's trial.
+void recordDistortion(SolveRun& run, const SolverSummary& summary) {
+  auto& rec = run.rec;
+  rec.distortion_tried = summary.distortion_tried;
+  rec.distortion_trial_max_px = summary.distortion_trial_max_px;
+  rec.distortion_trial_k1 = summary.distortion_trial_k1;
+  rec.distortion_trial_k2 = summary.distortion_trial_k2;
+  rec.distortion_median_before_px = summary.distortion_trial_median_before_px;
+  rec.distortion_median_after_px = summary.distortion_trial_median_after_px;
+  if (summary.distortion_detected)
+    rec.distortion_source = io::DistortionSource::kDetected;
+  else if (run.so.refine_distortion > 0)
+    rec.distortion_source = io::DistortionSource::kEstimated;
+  else if (run.so.k1 != 0.0 || run.so.k2 != 0.0)
+    rec.distortion_source = io::DistortionSource::kGiven;
+  else
+    rec.distortion_source = io::DistortionSource::kNone;
+}
+
 void describeSolve(SolveRun& run, const Solver& solver) {
   const SolveCommandOptions& o = run.o;
   auto& rec = run.rec;
@@ -217,6 +236,7 @@ void describeSolve(SolveRun& run, const Solver& solver) {
   rec.intrinsics.k2 = summary.k2;
   rec.focal_source = toString(summary.focal_source);
   rec.focal_observable = summary.focal_observable;
+  recordDistortion(run, summary);
   if (so.refine_given_focal && so.focal_px > 0.0) rec.focal_given_px = so.focal_px;
   rec.motion = toString(summary.motion);
   rec.status = toString(summary.status);
@@ -599,6 +619,20 @@ void printContradictedPairs(const io::Reconstruction& rec) {
                pairs.size(), rec.view_pairs_checked, named.c_str());
 }
 
+// A lens found by --distortion auto is said (it changes the camera model the outputs carry).
+void printDetectedDistortion(const SolveRun& run) {
+  const auto& rec = run.rec;
+  if (rec.distortion_source != io::DistortionSource::kDetected ||
+      run.o.progress == io::ProgressReporter::Mode::kQuiet)
+    return;
+  std::fprintf(stderr,
+               "epitrack-solve: lens distortion found and modelled: k1 %.4f, k2 %.4f (up to "
+               "%.1f px; median reprojection error %.3f -> %.3f px); --distortion none for a "
+               "pinhole camera; summary.json distortion\n",
+               rec.intrinsics.k1, rec.intrinsics.k2, rec.distortion_trial_max_px,
+               rec.distortion_median_before_px, rec.distortion_median_after_px);
+}
+
 // A camera model that leaves the rows unexplained (algo/sfm/row_misfit.hpp) is said even under
 // --quiet: the poses are written, but an inserted object will slide against the plate.
 void printRowMisfit(const io::Reconstruction& rec) {
@@ -645,6 +679,7 @@ void printResult(const SolveRun& run, const Solver& solver) {
   if (run.o.progress != io::ProgressReporter::Mode::kQuiet)
     std::fprintf(stderr, "epitrack-solve: %s\n", line);
   printUncertainReadout(rec);
+  printDetectedDistortion(run);
   printRowMisfit(rec);
   printContradictedPairs(rec);
 }

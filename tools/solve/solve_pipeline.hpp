@@ -25,9 +25,10 @@ struct SolveCommandOptions {
   /// epitrack-track output; INPUT still gives the frame size, the clip length and the frames
   /// drawn by --render/--overlay.
   std::string tracks_file;
-  std::string intrinsics_file;  ///< given intrinsics (focal, principal point, distortion)
-  double focal_px = 0.0;        ///< given focal (0: self-calibrate)
-  int distortion = 0;           ///< 0 none, 1 k1, 2 k1k2 (estimated)
+  std::string intrinsics_file;     ///< given intrinsics (focal, principal point, distortion)
+  double focal_px = 0.0;           ///< given focal (0: self-calibrate)
+  int distortion = 0;              ///< 0 none, 1 k1, 2 k1k2 (estimated)
+  bool detect_distortion = false;  ///< --distortion auto (SolverOptions::detect_distortion)
   /// Rolling shutter (--readout-ms): the time from the first row's exposure to the last's, in
   /// milliseconds (0: a global shutter). The frames' poses are then the middle row's.
   double readout_ms = 0.0;

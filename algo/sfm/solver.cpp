@@ -394,8 +394,9 @@ bool Solver::initialize() {
       !focal_observable_) {
     status_ = Status::kPlanarScene;
     message_ =
-        "the scene is a single plane (every frame pair fits a homography that is not a "
-        "rotation): the focal length cannot be self-calibrated; give --focal or --intrinsics";
+        "every frame pair fits a homography that is not a rotation (a single plane, scenery so "
+        "distant it acts as one, or too little parallax between the frames, as in slow forward "
+        "motion): the focal length cannot be self-calibrated; give --focal or --intrinsics";
     return false;
   }
   if (sweep_pending_ && !focal_observable_) sweepFocal();

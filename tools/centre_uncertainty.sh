@@ -57,7 +57,7 @@ one() { # clip mode solve-args...
   fi
   local ev
   ev=$("$eval_cmd" --gt "$out/$clip/groundtruth.txt" --est "$dir/cameras.tum" \
-    --gt-intrinsics "$out/$clip/intrinsics.txt" --est-intrinsics "$dir/intrinsics.txt" 2>&1) || true
+    --gt-intrinsics "$out/$clip/intrinsics.txt" --est-intrinsics "$dir/intrinsics.txt" 2>/dev/null) || true
   python3 - "$clip" "$mode" "$rc" "$((SECONDS - t0))" "$ev" "$dir/summary.json" <<'PY'
 import json, sys
 clip, mode, rc, secs, ev, path = sys.argv[1:]

@@ -29,7 +29,7 @@ one() { # name frames intrinsics-or-empty groundtruth
     return 0
   fi
   local ev
-  ev=$("$eval_cmd" --gt "$gt" --est "$out/$name/cameras.tum" 2>&1) || true
+  ev=$("$eval_cmd" --gt "$gt" --est "$out/$name/cameras.tum" 2>/dev/null) || true  # stdout: the JSON
   python3 - "$name" "$rc" "$((SECONDS - t0))" "$ev" "$out/$name/summary.json" <<'PY'
 import json, sys
 name, rc, secs, ev, path = sys.argv[1:]

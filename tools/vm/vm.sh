@@ -263,8 +263,10 @@ score() {
       awk 'NR == 10 { $2 += 1000 } { print }' "$build/$name-$kind.tum" >"$build/$name-$kind.tum.x"
       mv "$build/$name-$kind.tum.x" "$build/$name-$kind.tum"
     fi
-    result=$("$native/tools/eval/epitrack-eval" --gt "$gt" --est "$build/$name-$kind.tum" 2>&1) ||
-      result="epitrack-eval failed: $result"
+    # The JSON is stdout; stderr may carry a note (a thin path's alignment), kept apart.
+    result=$("$native/tools/eval/epitrack-eval" --gt "$gt" --est "$build/$name-$kind.tum" \
+      2>"$build/$name-$kind.eval.err") ||
+      result="epitrack-eval failed: $result $(cat "$build/$name-$kind.eval.err")"
     echo "VMATE $name-$kind $result"
     verdict=$(echo "$result" | awk -v min_m="$min_matched" -v max_r="$max_rel" '{
         r = $0; sub(/.*"ate_rmse_rel": /, "", r); sub(/[,}].*/, "", r)

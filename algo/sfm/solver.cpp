@@ -184,13 +184,7 @@ SolverSummary Solver::summary() const {
   s.tripod_readout_applied = tripod_readout_applied_;
   s.rotation_refused = rotation_refused_;
   s.view_pairs_checked = view_pairs_checked_;
-  s.distortion_tried = distortion_tried_;
-  s.distortion_detected = distortion_detected_;
-  s.distortion_trial_max_px = distortion_trial_max_px_;
-  s.distortion_trial_k1 = distortion_trial_k1_;
-  s.distortion_trial_k2 = distortion_trial_k2_;
-  s.distortion_trial_median_before_px = distortion_median_before_px_;
-  s.distortion_trial_median_after_px = distortion_median_after_px_;
+  s.distortion_trial = distortion_trial_;
   s.contradicted_pairs = contradicted_pairs_;
   return s;
 }
@@ -672,22 +666,22 @@ void Solver::restore(const AdjustedState& s) {
 void Solver::adjustDetectingDistortion(bool measure_centres) {
   const AdjustedState start = adjustedState();
   adjust(true);
-  distortion_tried_ = true;
-  distortion_median_before_px_ = adjustedMedianReprojectionPx();
+  DistortionTrial& t = distortion_trial_;
+  t.tried = true;
+  t.median_before_px = adjustedMedianReprojectionPx();
   const AdjustedState pinhole = adjustedState();
   restore(start);
   distortion_terms_ = 2;
   adjust(true);
-  distortion_trial_max_px_ = distortionMaxDisplacementPx(k1_, k2_);
-  distortion_trial_k1_ = k1_;
-  distortion_trial_k2_ = k2_;
-  distortion_median_after_px_ = adjustedMedianReprojectionPx();
-  distortion_detected_ =
-      std::isfinite(distortion_trial_max_px_) &&
-      distortion_trial_max_px_ >= options_.detect_distortion_min_px &&
-      distortion_median_after_px_ <=
-          (1.0 - options_.detect_distortion_min_drop) * distortion_median_before_px_;
-  if (distortion_detected_) {
+  t.k1 = k1_;
+  t.k2 = k2_;
+  t.max_displacement_px = distortionMaxDisplacementPx(k1_, k2_);
+  t.median_after_px = adjustedMedianReprojectionPx();
+  t.detected =
+      std::isfinite(t.max_displacement_px) &&
+      t.max_displacement_px >= options_.detect_distortion_min_px &&
+      t.median_after_px <= (1.0 - options_.detect_distortion_min_drop) * t.median_before_px;
+  if (t.detected) {
     adjust(true);
     adjust(true, measure_centres);
     return;

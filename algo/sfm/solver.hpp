@@ -9,6 +9,7 @@
 
 #include "algo/geometry/focal_self_calibration.hpp"
 #include "algo/geometry/pose.hpp"
+#include "algo/sfm/distortion_trial.hpp"
 #include "algo/sfm/rotation_adjustment.hpp"
 #include "algo/sfm/track_table.hpp"
 #include "algo/sfm/view_pair_contradiction.hpp"
@@ -26,8 +27,8 @@ struct SolverOptions {
   int refine_distortion = 0;  ///< 0 none, 1 k1, 2 k1 and k2 (estimated in the final adjustment)
   /// With refine_distortion 0 and no given distortion: try k1 and k2 in one more final
   /// adjustment and keep them when the lens shows (Solver::adjustDetectingDistortion): an
-  /// unmodelled lens otherwise bends into the focal and the path (k1 = -0.2 at 640x480: focal +42
-  /// %).
+  /// unmodelled lens otherwise bends into the focal and the path (k1 = -0.2 at 640x480: the
+  /// focal 42 % off).
   bool detect_distortion = false;
   /// detect_distortion keeps k1, k2 when they move some pixel of the image by at least this much
   /// (the largest displacement over the radii of the image)...
@@ -307,15 +308,7 @@ struct SolverSummary {
   /// those the matches contradict (worst first).
   int view_pairs_checked = -1;
   std::vector<ViewPairContradiction> contradicted_pairs;
-  /// SolverOptions::detect_distortion: whether the trial ran and kept k1, k2; the largest pixel
-  /// displacement of its k1, k2 over the image; the adjusted cameras' median reprojection error
-  /// without and with them (px).
-  bool distortion_tried = false;
-  bool distortion_detected = false;
-  double distortion_trial_max_px = 0.0;
-  double distortion_trial_k1 = 0.0, distortion_trial_k2 = 0.0;  ///< the trial's lens
-  double distortion_trial_median_before_px = 0.0;
-  double distortion_trial_median_after_px = 0.0;
+  DistortionTrial distortion_trial;  ///< SolverOptions::detect_distortion
 };
 
 /// The 3D tracker of the paper (§5, Figure 2) with bundle adjustment beyond it. Stages, in order:
@@ -488,12 +481,9 @@ class Solver {
   FocalFallback focal_fallback_ = FocalFallback::kNone;
   // Robust cut and Huber threshold (pixels) of the last global adjustment; 0: none yet.
   double robust_cut_px_ = 0.0;
-  int distortion_terms_ = 0;  // k1 (1), k1 and k2 (2) refined by the global adjustments
-  bool distortion_tried_ = false, distortion_detected_ = false;
-  double distortion_trial_max_px_ = 0.0;
-  double distortion_trial_k1_ = 0.0, distortion_trial_k2_ = 0.0;
-  double distortion_median_before_px_ = 0.0, distortion_median_after_px_ = 0.0;
   double robust_huber_px_ = 0.0;
+  int distortion_terms_ = 0;  // k1 (1), k1 and k2 (2) refined by the global adjustments
+  DistortionTrial distortion_trial_;
   double centre_sd_percent_ = -1.0;
   double centre_sd_steps_ = -1.0;
   double path_length_ = 0.0;

@@ -16,13 +16,19 @@ double angleDeg(const Eigen::Matrix3d& R) {
   return std::atan2(0.5 * w.norm(), c) * 180.0 / 3.14159265358979323846;
 }
 
-// The rotation nearest (Frobenius) to `sum`, a sum of rotations: their chordal L2 mean
-// (Hartley et al. 2013, "Rotation averaging", sec. 5.3); identity when `sum` is degenerate.
-Eigen::Matrix3d chordalMeanRotation(const Eigen::Matrix3d& sum) {
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
+// The rotation nearest (Frobenius) to M, reflection excluded (Umeyama 1991, eq. 39-40); not
+// finite when M is.
+Eigen::Matrix3d nearestRotation(const Eigen::Matrix3d& M) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
   if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
-  const Eigen::Matrix3d R = svd.matrixU() * D * svd.matrixV().transpose();
+  return svd.matrixU() * D * svd.matrixV().transpose();
+}
+
+// The chordal L2 mean of the rotations summed in `sum` (Hartley et al. 2013, "Rotation
+// averaging", sec. 5.3): the rotation nearest to it; identity when `sum` is degenerate.
+Eigen::Matrix3d chordalMeanRotation(const Eigen::Matrix3d& sum) {
+  const Eigen::Matrix3d R = nearestRotation(sum);
   return R.allFinite() ? R : Eigen::Matrix3d::Identity();
 }
 
@@ -41,28 +47,52 @@ void rotationErrors(
   mean_deg = sum / static_cast<double>(pairs.size());
 }
 
-// RMSE of the centres under the rotation R with the least-squares scale and translation for it
-// (Umeyama's eq. 42 with R fixed).
-double centreRmseForRotation(const std::vector<Eigen::Vector3d>& source,
-                             const std::vector<Eigen::Vector3d>& target, const Eigen::Matrix3d& R) {
-  const double n = static_cast<double>(source.size());
+// The centres' means, cross-covariance (target x source) and source variance, each over n
+// (Umeyama 1991, eqs. 34-38).
+struct CentreMoments {
   Eigen::Vector3d mu_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d mu_t = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < source.size(); ++i) {
-    mu_s += source[i] / n;
-    mu_t += target[i] / n;
-  }
-  double cross = 0.0;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   double var_s = 0.0;
-  for (std::size_t i = 0; i < source.size(); ++i) {
-    cross += (target[i] - mu_t).dot(R * (source[i] - mu_s));
-    var_s += (source[i] - mu_s).squaredNorm();
+};
+
+CentreMoments centreMoments(const std::vector<Eigen::Vector3d>& source,
+                            const std::vector<Eigen::Vector3d>& target) {
+  const std::size_t n = source.size();
+  CentreMoments c;
+  for (std::size_t i = 0; i < n; ++i) {
+    c.mu_s += source[i];
+    c.mu_t += target[i];
   }
-  const double s = var_s > 0.0 ? std::max(0.0, cross / var_s) : 0.0;
+  c.mu_s /= static_cast<double>(n);
+  c.mu_t /= static_cast<double>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d ds = source[i] - c.mu_s;
+    c.cov += (target[i] - c.mu_t) * ds.transpose();
+    c.var_s += ds.squaredNorm();
+  }
+  c.cov /= static_cast<double>(n);
+  c.var_s /= static_cast<double>(n);
+  return c;
+}
+
+// The least-squares scale for the rotation R (Umeyama's eq. 42 with R fixed).
+double scaleForRotation(const CentreMoments& c, const Eigen::Matrix3d& R) {
+  return (R.transpose() * c.cov).trace() / c.var_s;
+}
+
+// RMSE of the centres under the rotation R with the least-squares scale and translation for it.
+double centreRmseForRotation(const std::vector<Eigen::Vector3d>& source,
+                             const std::vector<Eigen::Vector3d>& target, const Eigen::Matrix3d& R) {
+  const CentreMoments c = centreMoments(source, target);
+  Similarity S;
+  S.R = R;
+  S.s = c.var_s > 0.0 ? std::max(0.0, scaleForRotation(c, R)) : 0.0;
+  S.t = c.mu_t - S.s * R * c.mu_s;
   double sq = 0.0;
   for (std::size_t i = 0; i < source.size(); ++i)
-    sq += (s * (R * (source[i] - mu_s)) - (target[i] - mu_t)).squaredNorm();
-  return std::sqrt(sq / n);
+    sq += (S.apply(source[i]) - target[i]).squaredNorm();
+  return std::sqrt(sq / static_cast<double>(source.size()));
 }
 
 }  // namespace
@@ -77,23 +107,9 @@ bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
                       const Eigen::Matrix3d& orientation_sum, Similarity& out) {
   const std::size_t n = source.size();
   if (n < 3 || target.size() != n) return false;
-  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero();
-  Eigen::Vector3d mu_t = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    mu_s += source[i];
-    mu_t += target[i];
-  }
-  mu_s /= static_cast<double>(n);
-  mu_t /= static_cast<double>(n);
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  double var_s = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d ds = source[i] - mu_s;
-    cov += (target[i] - mu_t) * ds.transpose();
-    var_s += ds.squaredNorm();
-  }
-  cov /= static_cast<double>(n);
-  var_s /= static_cast<double>(n);
+  const CentreMoments c = centreMoments(source, target);
+  const Eigen::Matrix3d& cov = c.cov;
+  const double var_s = c.var_s;
   if (!(var_s > 1e-300)) return false;
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Vector3d& d = svd.singularValues();
@@ -110,17 +126,14 @@ bool umeyamaAlignment(const std::vector<Eigen::Vector3d>& source,
     const double m0 = so.singularValues()(0);
     if (m0 > 0.0) {
       const Eigen::Matrix3d C = cov + (kOrientationTieBreak * d(0) / m0) * orientation_sum;
-      const Eigen::JacobiSVD<Eigen::Matrix3d> sc(C, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-      if (sc.matrixU().determinant() * sc.matrixV().determinant() < 0.0) D(2, 2) = -1.0;
-      const Eigen::Matrix3d R = sc.matrixU() * D * sc.matrixV().transpose();
+      const Eigen::Matrix3d R = nearestRotation(C);
       if (R.allFinite()) {
         out.R = R;
-        out.s = (R.transpose() * cov).trace() / var_s;  // least squares for this rotation
+        out.s = scaleForRotation(c, R);  // least squares for this rotation
       }
     }
   }
-  out.t = mu_t - out.s * out.R * mu_s;
+  out.t = c.mu_t - out.s * out.R * c.mu_s;
   return std::isfinite(out.s) && out.s > 0.0;
 }
 

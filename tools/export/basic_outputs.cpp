@@ -160,6 +160,29 @@ void reprojectionStatistics(const Reconstruction& rec, double& mean_px, double& 
   if (!std::isfinite(median_px)) median_px = median(residuals);
 }
 
+namespace {
+
+// summary.json "distortion": where k1, k2 come from, and --distortion auto's trial.
+void writeDistortion(JsonWriter& j, const Reconstruction& rec) {
+  const DistortionTrial& trial = rec.distortion_trial;
+  j.key("distortion");
+  j.beginObject();
+  j.field("source", distortionSourceName(rec.distortion_source));
+  j.field("k1", rec.intrinsics.k1);
+  j.field("k2", rec.intrinsics.k2);
+  j.field("tried", trial.tried);
+  if (trial.tried) {
+    j.field("trial_k1", trial.k1);
+    j.field("trial_k2", trial.k2);
+    j.field("trial_max_displacement_px", trial.max_displacement_px);
+    j.field("trial_median_before_px", trial.median_before_px);
+    j.field("trial_median_after_px", trial.median_after_px);
+  }
+  j.endObject();
+}
+
+}  // namespace
+
 std::string formatSummaryJson(const Reconstruction& rec) { return formatSummaryJson(rec, {}); }
 
 std::string formatSummaryJson(const Reconstruction& rec,
@@ -252,20 +275,7 @@ std::string formatSummaryJson(const Reconstruction& rec,
     j.field("ba_iterations", rec.readout_ba_iterations);
     j.endObject();
   }
-  j.key("distortion");
-  j.beginObject();
-  j.field("source", distortionSourceName(rec.distortion_source));
-  j.field("k1", k.k1);
-  j.field("k2", k.k2);
-  j.field("tried", rec.distortion_tried);
-  if (rec.distortion_tried) {
-    j.field("trial_k1", rec.distortion_trial_k1);
-    j.field("trial_k2", rec.distortion_trial_k2);
-    j.field("trial_max_displacement_px", rec.distortion_trial_max_px);
-    j.field("trial_median_before_px", rec.distortion_median_before_px);
-    j.field("trial_median_after_px", rec.distortion_median_after_px);
-  }
-  j.endObject();
+  writeDistortion(j, rec);
   if (rec.row_misfit.frames_tested > 0) {
     const RowMisfit& m = rec.row_misfit;
     j.key("row_misfit");

@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 
 #include "algo/geometry/camera_intrinsics.hpp"
+#include "algo/sfm/distortion_trial.hpp"
 #include "algo/sfm/row_misfit.hpp"
 #include "algo/sfm/view_pair_contradiction.hpp"
 
@@ -219,11 +220,7 @@ struct Reconstruction {
   /// kGiven (--intrinsics with k1 or k2), kEstimated (--distortion k1|k1k2), kDetected
   /// (--distortion auto found the lens: the trial's figures below).
   DistortionSource distortion_source = DistortionSource::kNone;
-  bool distortion_tried = false;         ///< --distortion auto ran its trial
-  double distortion_trial_max_px = 0.0;  ///< largest displacement of the trial's k1, k2
-  double distortion_trial_k1 = 0.0, distortion_trial_k2 = 0.0;  ///< the trial\'s lens
-  double distortion_median_before_px = 0.0;  ///< adjusted cameras' median error, pinhole
-  double distortion_median_after_px = 0.0;   ///< and with the trial's k1, k2
+  DistortionTrial distortion_trial;  ///< --distortion auto's trial (tried: it ran)
   /// Whether the camera model explains the rows (algo/sfm/row_misfit.hpp, computed from the
   /// residuals by io::rowMisfitOf; summary.json "row_misfit" when frames_tested > 0).
   RowMisfit row_misfit;

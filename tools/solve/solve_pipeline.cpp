@@ -204,13 +204,8 @@ StageResult solveStages(SolveRun& run, Solver& solver) {
 // summary.json "distortion": where k1, k2 come from, and --distortion auto's trial.
 void recordDistortion(SolveRun& run, const SolverSummary& summary) {
   auto& rec = run.rec;
-  rec.distortion_tried = summary.distortion_tried;
-  rec.distortion_trial_max_px = summary.distortion_trial_max_px;
-  rec.distortion_trial_k1 = summary.distortion_trial_k1;
-  rec.distortion_trial_k2 = summary.distortion_trial_k2;
-  rec.distortion_median_before_px = summary.distortion_trial_median_before_px;
-  rec.distortion_median_after_px = summary.distortion_trial_median_after_px;
-  if (summary.distortion_detected)
+  rec.distortion_trial = summary.distortion_trial;
+  if (summary.distortion_trial.detected)
     rec.distortion_source = io::DistortionSource::kDetected;
   else if (run.so.refine_distortion > 0)
     rec.distortion_source = io::DistortionSource::kEstimated;
@@ -629,8 +624,8 @@ void printDetectedDistortion(const SolveRun& run) {
                "epitrack-solve: lens distortion found and modelled: k1 %.4f, k2 %.4f (up to "
                "%.1f px; median reprojection error %.3f -> %.3f px); --distortion none for a "
                "pinhole camera; summary.json distortion\n",
-               rec.intrinsics.k1, rec.intrinsics.k2, rec.distortion_trial_max_px,
-               rec.distortion_median_before_px, rec.distortion_median_after_px);
+               rec.intrinsics.k1, rec.intrinsics.k2, rec.distortion_trial.max_displacement_px,
+               rec.distortion_trial.median_before_px, rec.distortion_trial.median_after_px);
 }
 
 // A camera model that leaves the rows unexplained (algo/sfm/row_misfit.hpp) is said even under

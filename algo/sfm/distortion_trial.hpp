@@ -1,0 +1,16 @@
+#pragma once
+
+namespace epitrack {
+
+/// SolverOptions::detect_distortion's trial (Solver::adjustDetectingDistortion): the final
+/// adjustments run as a pinhole and, from the same start, with k1 and k2 free.
+struct DistortionTrial {
+  bool tried = false;                ///< the trial ran
+  bool detected = false;             ///< its k1, k2 were kept
+  double k1 = 0.0, k2 = 0.0;         ///< the lens it found, kept or not
+  double max_displacement_px = 0.0;  ///< the largest pixel displacement of that k1, k2
+  double median_before_px = 0.0;     ///< adjusted cameras' median reprojection error, pinhole
+  double median_after_px = 0.0;      ///< and with the trial's k1, k2
+};
+
+}  // namespace epitrack

@@ -37,6 +37,11 @@ struct SolverOptions {
   /// fraction. On undistorted clips k1, k2 come out moving pixels by 0.6 px at most and lower
   /// the median by 0-4 %; a k1 of -0.2 moves the corners by 31 px and lowers it by 82 %.
   double detect_distortion_min_drop = 0.2;
+  /// With keyframe_collection, detect_distortion also tries the lens during the registration,
+  /// first when this many views are registered (2: the initial pair) and again each time their
+  /// number has doubled since the last trial: a lens left out while the views are registered
+  /// has misled the registration before the final adjustments could see it.
+  int detect_distortion_min_views = 2;
   bool refine_given_focal = false;
   double fallback_focal_widths =
       1.2;  ///< focal when it is neither given nor observable (x max(w, h))
@@ -400,6 +405,8 @@ class Solver {
   [[nodiscard]] AdjustedState adjustedState() const;
   void restore(const AdjustedState& s);
   void adjustDetectingDistortion(bool measure_centres);
+  bool tryDistortion(bool global);
+  [[nodiscard]] bool distortionTrialDue() const;
   [[nodiscard]] double adjustedMedianReprojectionPx() const;
   [[nodiscard]] double distortionMaxDisplacementPx(double k1, double k2) const;
   bool tripodSolve();

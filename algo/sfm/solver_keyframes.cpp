@@ -242,7 +242,11 @@ bool Solver::registerBestViews() {
     // Short tracks chain the views weakly: a global adjustment every few frames keeps the early
     // ones from being frozen with their first (least constrained) poses.
     const int every = options_.keyframe_global_every;
-    adjust(every > 0 && ++accepted % every == 0);
+    const bool global = every > 0 && ++accepted % every == 0;
+    if (distortionTrialDue())
+      tryDistortion(global);
+    else
+      adjust(global);
   };
   for (;;) {
     int best = -1, best_count = 0;
@@ -291,7 +295,10 @@ bool Solver::registerBestViews() {
       // when the map grew.
       if (retry_rounds >= options_.keyframe_retry_rounds) break;
       ++retry_rounds;
-      adjust(true);
+      if (distortionTrialDue())
+        tryDistortion(true);
+      else
+        adjust(true);
       int added = 0;
       for (int f = 0; f < n; ++f)
         if (frames_[static_cast<std::size_t>(f)].solved) added += triangulateNewTracks(f);

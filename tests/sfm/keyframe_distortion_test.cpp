@@ -2,7 +2,8 @@
 // clip subsampled to large viewpoint steps) with k1 = -0.28, k2 = 0.07 (a wide-angle lens, the
 // model of a drone's 752x480 camera), matched, verified and solved with the distortion given,
 // against the same views rendered through a pinhole lens. Every view must register and the
-// trajectory error must stay close to the pinhole copy's.
+// trajectory error must stay close to the pinhole copy's. The same sets with the lens given to
+// nobody: SolverOptions::detect_distortion finds it while the views register.
 
 #include <catch2/catch.hpp>
 
@@ -42,12 +43,28 @@ struct SolveFigures {
   double rotation_deg = 180.0;
   int verified_pairs = 0;  // of the view graph
   int inliers = 0;         // verified matches over every pair
+  DistortionTrial trial;   // SolverOptions::detect_distortion's
+  double focal = 0.0, k1 = 0.0, k2 = 0.0;
 };
 
-// Renders the set through a lens with (k1, k2), tracks it by descriptors (the distortion given
-// to the verification when `give_distortion`), solves it as key frames with the distortion given
-// and scores it against the true poses.
-SolveFigures solveSet(const KeyframeSet& set, double k1, double k2, bool give_distortion) {
+// What the solve is told of the lens.
+enum class LensKnowledge {
+  kGiven,       // k1, k2 given to the matching and the solver
+  kSolverOnly,  // given to the solver, left out of the matching
+  kUnknown,     // given to nobody, nor the focal: detect_distortion finds it while the views
+                // register
+};
+
+// The key-frame sets of both tests: wide steps around and along the scene.
+const KeyframeSet kSets[] = {
+    {synth::SceneKind::kOrbit, 10, 40, 0.5, 3, "orbit seed 3, 10 deg steps"},
+    {synth::SceneKind::kOrbit, 8, 56, 0.5, 7, "orbit seed 7, 14 deg steps"},
+    {synth::SceneKind::kHandheld, 8, 80, 0.0, 2, "handheld seed 2, 0.4 m steps"},
+};
+
+// Renders the set through a lens with (k1, k2), tracks it by descriptors, solves it as key frames
+// with what `lens` says of the distortion and scores it against the true poses.
+SolveFigures solveSet(const KeyframeSet& set, double k1, double k2, LensKnowledge lens) {
   synth::SynthOptions so;
   so.kind = set.kind;
   so.frames = set.keyframes * set.spacing;
@@ -65,7 +82,7 @@ SolveFigures solveSet(const KeyframeSet& set, double k1, double k2, bool give_di
   o.cx = (so.width - 1) * 0.5;
   o.cy = (so.height - 1) * 0.5;
   o.window = DescriptorTrackerOptions::kAllPairs;  // a photo set: every pair
-  if (give_distortion) {
+  if (lens == LensKnowledge::kGiven) {
     o.k1 = k1;
     o.k2 = k2;
   }
@@ -77,21 +94,30 @@ SolveFigures solveSet(const KeyframeSet& set, double k1, double k2, bool give_di
   }
   TrackTable tracks;
   tracker.buildTracks(tracks);
+  const bool unknown = lens == LensKnowledge::kUnknown;
   SolveFigures r;
   for (const FramePairMatches& p : tracker.pairs()) {
     r.verified_pairs += p.verified ? 1 : 0;
     r.inliers += p.verified ? p.inliers : 0;
   }
   SolverOptions options;
-  options.focal_px = so.focal;
-  options.k1 = k1;
-  options.k2 = k2;
+  // A lens nobody named comes with a focal nobody named (self-calibrated: a given focal held
+  // fixed through an unmodelled k1 = -0.28 misleads the registration, docs/solver.md).
+  options.focal_px = unknown ? 0.0 : so.focal;
+  options.k1 = unknown ? 0.0 : k1;
+  options.k2 = unknown ? 0.0 : k2;
+  options.detect_distortion = unknown;
   options.keyframe_collection = true;
   Solver solver(tracks, so.width, so.height, options);
   r.frames = set.keyframes;
   if (!solver.calibrate() || !solver.initialize() || !solver.registerFrames() || !solver.finalize())
     return r;
   r.solved = solver.solvedFrames();
+  const SolverSummary summary = solver.summary();
+  r.trial = summary.distortion_trial;
+  r.focal = summary.focal_px;
+  r.k1 = summary.k1;
+  r.k2 = summary.k2;
   std::vector<hal::TrajectoryEntry> gt, est;
   for (int k = 0; k < set.keyframes; ++k) {
     const synth::Pose truth = seq.pose(k * set.spacing);
@@ -132,16 +158,11 @@ TEST_CASE("undistortNormalized inverts the radial model up to the corners of a w
 
 TEST_CASE("Key frames through a k1 = -0.28 lens register as well as their pinhole copy",
           "[sfm][distortion][keyframes][slow]") {
-  const KeyframeSet sets[] = {
-      {synth::SceneKind::kOrbit, 10, 40, 0.5, 3, "orbit seed 3, 10 deg steps"},
-      {synth::SceneKind::kOrbit, 8, 56, 0.5, 7, "orbit seed 7, 14 deg steps"},
-      {synth::SceneKind::kHandheld, 8, 80, 0.0, 2, "handheld seed 2, 0.4 m steps"},
-  };
-  for (const KeyframeSet& set : sets) {
-    const SolveFigures pinhole = solveSet(set, 0.0, 0.0, false);
-    const SolveFigures lens = solveSet(set, kK1, kK2, true);
+  for (const KeyframeSet& set : kSets) {
+    const SolveFigures pinhole = solveSet(set, 0.0, 0.0, LensKnowledge::kGiven);
+    const SolveFigures lens = solveSet(set, kK1, kK2, LensKnowledge::kGiven);
     // The same lens with its distortion left out of the matching (the solver still has it).
-    const SolveFigures ignored = solveSet(set, kK1, kK2, false);
+    const SolveFigures ignored = solveSet(set, kK1, kK2, LensKnowledge::kSolverOnly);
     const auto line = [&](const char* what, const SolveFigures& r) {
       std::printf("%s, %s: %d/%d, ATE %.5f, %.3f deg, %d verified pairs, %d inliers\n", set.name,
                   what, r.solved, r.frames, r.ate, r.rotation_deg, r.verified_pairs, r.inliers);
@@ -161,5 +182,35 @@ TEST_CASE("Key frames through a k1 = -0.28 lens register as well as their pinhol
     // against 0.00029).
     CHECK(lens.verified_pairs >= ignored.verified_pairs);
     CHECK(lens.inliers > ignored.inliers);
+  }
+}
+
+TEST_CASE("Key frames through a lens nobody named: found while the views register",
+          "[sfm][distortion][keyframes][slow]") {
+  // SolverOptions::detect_distortion in the key-frame mode: the trial runs with the initial
+  // pair's adjustment and again at 4, 8, ... views, not only in the final adjustments, which come
+  // after an unmodelled lens has misled every registration. Measured 2026-12-07 (focal
+  // self-calibrated): found at the initial pair, rotations 0.020 / 0.014 / 0.009 deg, ATE
+  // 0.004 / 0.020 / 0.007 %; tried in the final adjustments only (detect_distortion_min_views
+  // beyond the set): 123 deg and 15 % (the lens not found) / 0.069 deg / 4.6 deg and 0.5 %.
+  for (const KeyframeSet& set : kSets) {
+    const SolveFigures given = solveSet(set, kK1, kK2, LensKnowledge::kGiven);
+    const SolveFigures found = solveSet(set, kK1, kK2, LensKnowledge::kUnknown);
+    const auto line = [&](const char* what, const SolveFigures& r) {
+      std::printf(
+          "%s, %s: %d/%d, focal %.2f, k1 %.4f k2 %.4f (trial at %d views), ATE %.5f, %.3f deg\n",
+          set.name, what, r.solved, r.frames, r.focal, r.k1, r.k2, r.trial.views, r.ate,
+          r.rotation_deg);
+    };
+    line("lens given", given);
+    line("lens found while registering", found);
+    INFO(set.name);
+    CHECK(found.solved == found.frames);
+    CHECK(found.trial.detected);
+    CHECK(found.trial.views < found.frames);  // found during the registration
+    CHECK(found.k1 == Approx(kK1).margin(0.005));
+    CHECK(found.k2 == Approx(kK2).margin(0.005));
+    CHECK(found.ate <= std::max(2.0 * given.ate, given.ate + 5e-4));
+    CHECK(found.rotation_deg <= std::max(2.0 * given.rotation_deg, given.rotation_deg + 0.03));
   }
 }

@@ -44,6 +44,7 @@ TEST_CASE("epitrack-solve --distortion auto leaves a pinhole clip's solve as it 
   CHECK(contains(automatic, "\"source\": \"none\""));
   CHECK(contains(automatic, "\"tried\": true"));
   CHECK(contains(pinhole, "\"tried\": false"));
+  CHECK(jsonNumber(automatic, "trial_views") == 60);  // a video's trial: the final adjustments
   // The trial's lens is nothing: well under the 2 px it would need, no lower error.
   CHECK(jsonNumber(automatic, "trial_max_displacement_px") < 1.0);
   CHECK(jsonNumber(automatic, "trial_median_after_px") >

@@ -172,6 +172,7 @@ void writeDistortion(JsonWriter& j, const Reconstruction& rec) {
   j.field("k2", rec.intrinsics.k2);
   j.field("tried", trial.tried);
   if (trial.tried) {
+    j.field("trial_views", trial.views);
     j.field("trial_k1", trial.k1);
     j.field("trial_k2", trial.k2);
     j.field("trial_max_displacement_px", trial.max_displacement_px);

@@ -208,6 +208,9 @@ bool Solver::calibrate() {
     message_ = "fewer than 8 tracked features: nothing to reconstruct";
     return false;
   }
+  // A given lens is taken out of the calibration pairs' F and H (undistortedPixel needs the
+  // focal): through k1 = -0.1 a pan's homographies are not rotations, and the tripod was refused.
+  if (options_.focal_px > 0.0) f_ = options_.focal_px;
   FundamentalRansac fr(max_obs);
   HomographyRansac hr(max_obs);
   FundamentalOptions fo;

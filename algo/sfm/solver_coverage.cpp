@@ -189,17 +189,32 @@ void Solver::assessCentres() {
     cameras_without_view += std::to_string(undetermined);
     cameras_without_view += " of its cameras have no observation in front of them";
   }
-  char text[512];
-  std::snprintf(
-      text, sizeof(text),
-      "camera centres poorly determined: their standard deviation in the final "
-      "adjustment is %.2f of the mean frame-to-frame step (limit %.2f; %.3f %% of the "
-      "path length)%s; %s, the camera path is not to be trusted (a fast pan that "
-      "travels little, short tracks)",
-      centre_sd_steps_, options_.max_centre_sd_steps, centre_sd_percent_,
-      cameras_without_view.c_str(),
-      // A camera that sees no point in front of it has no trustworthy rotation either.
-      undetermined > 0 ? "their poses are not solved" : "the rotations and the focal are solved");
+  // A camera that sees no point in front of it has no trustworthy rotation either. A lens the
+  // distortion trial saw but could not confirm (a pan through k1 = -0.1 solved as a walking
+  // camera: the trial's k1 moves pixels by 12 px, the free depths absorb it, the focal +27 %)
+  // leaves the focal in doubt.
+  const DistortionTrial& lens = distortion_trial_;
+  const bool lens_in_doubt =
+      lens.tried && !lens.detected && lens.max_displacement_px >= options_.detect_distortion_min_px;
+  char what_stands[256];
+  if (undetermined > 0)
+    std::snprintf(what_stands, sizeof(what_stands), "their poses are not solved");
+  else if (lens_in_doubt)
+    std::snprintf(what_stands, sizeof(what_stands),
+                  "the rotations are solved, the focal only if the lens does not distort (a "
+                  "trial k1 %.3f moved pixels by %.1f px without lowering the error: give the "
+                  "lens with --intrinsics if it has any)",
+                  lens.k1, lens.max_displacement_px);
+  else
+    std::snprintf(what_stands, sizeof(what_stands), "the rotations and the focal are solved");
+  char text[768];
+  std::snprintf(text, sizeof(text),
+                "camera centres poorly determined: their standard deviation in the final "
+                "adjustment is %.2f of the mean frame-to-frame step (limit %.2f; %.3f %% of the "
+                "path length)%s; %s, the camera path is not to be trusted (a fast pan that "
+                "travels little, short tracks)",
+                centre_sd_steps_, options_.max_centre_sd_steps, centre_sd_percent_,
+                cameras_without_view.c_str(), what_stands);
   status_ = Status::kTrajectoryUncertain;
   message_ = text;
 }

@@ -551,6 +551,50 @@ void Solver::seedMap(const InitialPair& best) {
     adjust(true);
 }
 
+// A registration to return to: what the global adjustments change, and the map's bookkeeping.
+struct Solver::RegisteredState {
+  AdjustedState adjusted;
+  std::vector<int> point_of_track, keyframes;
+  int init_a = -1, init_b = -1;
+};
+
+// SolverOptions::keyframe_lens_reregistration: the views registered again from a new initial
+// pair, the lens the first registration ended with held as its start (and refined by the global
+// adjustments as before). Kept when it registers no fewer views with a lower median
+// reprojection error; otherwise the first registration stands.
+void Solver::reregisterWithLens() {
+  RegisteredState first;
+  first.adjusted = adjustedState();
+  first.point_of_track = point_of_track_;
+  first.keyframes = keyframes_;
+  first.init_a = init_a_;
+  first.init_b = init_b_;
+  const int first_views = solvedFrames();
+  DistortionTrial& t = distortion_trial_;
+  t.reregistered = true;
+  t.first_registration_median_px = medianReprojectionAll();
+  for (auto& fr : frames_) fr = SolvedFrame{};
+  points_.clear();
+  std::fill(point_of_track_.begin(), point_of_track_.end(), -1);
+  keyframes_.clear();
+  InitialPair best;
+  searchInitialPairs(best);
+  if (best.score > 0.0) {
+    seedMap(best);
+    registerBestViews();
+  }
+  t.reregistration_median_px =
+      best.score > 0.0 ? medianReprojectionAll() : std::numeric_limits<double>::infinity();
+  t.reregistration_kept = best.score > 0.0 && solvedFrames() >= first_views &&
+                          t.reregistration_median_px < t.first_registration_median_px;
+  if (t.reregistration_kept) return;
+  restore(first.adjusted);
+  point_of_track_ = first.point_of_track;
+  keyframes_ = first.keyframes;
+  init_a_ = first.init_a;
+  init_b_ = first.init_b;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Stage 4: global adjustment, then every frame on the final map.
 
@@ -640,13 +684,6 @@ double Solver::distortionMaxDisplacementPx(double k1, double k2) const {
   }
   return worst;
 }
-
-// What the global adjustments change: the state detect_distortion puts back.
-struct Solver::AdjustedState {
-  std::vector<SolvedFrame> frames;
-  std::vector<MapPoint> points;
-  double f = 0.0, k1 = 0.0, k2 = 0.0, cut_px = 0.0, huber_px = 0.0;
-};
 
 Solver::AdjustedState Solver::adjustedState() const {
   return {frames_, points_, f_, k1_, k2_, robust_cut_px_, robust_huber_px_};

@@ -61,7 +61,8 @@ FocalProfilePoint Solver::probeFocal(const TrackTable& tracks, double focal, boo
   o.focal_px = focal;
   o.refine_given_focal = refine;
   o.focal_sweep = false;
-  o.max_centre_sd_steps = 0.0;  // the profile scores reprojection, not the path
+  o.max_centre_sd_steps = 0.0;             // the profile scores reprojection, not the path
+  o.keyframe_lens_reregistration = false;  // the chosen focal's solve registers again
   Solver probe(tracks, width_, height_, o);
   FocalProfilePoint p;
   p.start_px = focal;

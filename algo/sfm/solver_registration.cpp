@@ -267,7 +267,13 @@ void Solver::adjust(bool global, bool measure_centres) {
 
 bool Solver::registerFrames() {
   if (tripod_) return true;
-  if (options_.keyframe_collection) return registerBestViews();
+  if (options_.keyframe_collection) {
+    registerBestViews();
+    if (options_.keyframe_lens_reregistration && distortion_terms_ > 0 && options_.k1 == 0.0 &&
+        options_.k2 == 0.0)
+      reregisterWithLens();
+    return true;
+  }
   const int n = tracks_.frameCount();
   auto step = [&](int f) {
     if (frames_[static_cast<std::size_t>(f)].solved) return;

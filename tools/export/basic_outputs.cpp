@@ -179,6 +179,12 @@ void writeDistortion(JsonWriter& j, const Reconstruction& rec) {
     j.field("trial_median_before_px", trial.median_before_px);
     j.field("trial_median_after_px", trial.median_after_px);
   }
+  j.field("reregistered", trial.reregistered);
+  if (trial.reregistered) {
+    j.field("reregistration_kept", trial.reregistration_kept);
+    j.field("first_registration_median_px", trial.first_registration_median_px);
+    j.field("reregistration_median_px", trial.reregistration_median_px);
+  }
   j.endObject();
 }
 

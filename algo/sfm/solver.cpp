@@ -545,10 +545,7 @@ void Solver::seedMap(const InitialPair& best) {
   }
   addKeyframe(init_a_);
   addKeyframe(init_b_);
-  if (distortionTrialDue())
-    tryDistortion(true);
-  else
-    adjust(true);
+  adjustTryingDistortion(true);
 }
 
 // A registration to return to: what the global adjustments change, and the map's bookkeeping.
@@ -748,6 +745,15 @@ bool Solver::tryDistortion(bool global) {
     adjust(false);
   }
   return false;
+}
+
+// An adjustment of the key-frame registration, with the lens trial when it is due
+// (distortionTrialDue): the state after it is adjust(global)'s unless a lens is found.
+void Solver::adjustTryingDistortion(bool global) {
+  if (distortionTrialDue())
+    tryDistortion(global);
+  else
+    adjust(global);
 }
 
 // In the key-frame registration, with detect_distortion and no lens yet: a trial

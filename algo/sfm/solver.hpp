@@ -420,6 +420,7 @@ class Solver {
   void restore(const AdjustedState& s);
   void adjustDetectingDistortion(bool measure_centres);
   bool tryDistortion(bool global);
+  void adjustTryingDistortion(bool global);
   [[nodiscard]] bool distortionTrialDue() const;
   [[nodiscard]] double adjustedMedianReprojectionPx() const;
   [[nodiscard]] double distortionMaxDisplacementPx(double k1, double k2) const;

@@ -242,11 +242,7 @@ bool Solver::registerBestViews() {
     // Short tracks chain the views weakly: a global adjustment every few frames keeps the early
     // ones from being frozen with their first (least constrained) poses.
     const int every = options_.keyframe_global_every;
-    const bool global = every > 0 && ++accepted % every == 0;
-    if (distortionTrialDue())
-      tryDistortion(global);
-    else
-      adjust(global);
+    adjustTryingDistortion(every > 0 && ++accepted % every == 0);
   };
   for (;;) {
     int best = -1, best_count = 0;
@@ -295,10 +291,7 @@ bool Solver::registerBestViews() {
       // when the map grew.
       if (retry_rounds >= options_.keyframe_retry_rounds) break;
       ++retry_rounds;
-      if (distortionTrialDue())
-        tryDistortion(true);
-      else
-        adjust(true);
+      adjustTryingDistortion(true);
       int added = 0;
       for (int f = 0; f < n; ++f)
         if (frames_[static_cast<std::size_t>(f)].solved) added += triangulateNewTracks(f);
